@@ -1,0 +1,192 @@
+// PCD files through PCL's own reader and writer (pcl::PCDReader / pcl::PCDWriter on
+// pcl::PCLPointCloud2), so every field, the organized width x height and the viewpoint are kept
+// exactly as PCL keeps them. The Python side (example_pcl.pcd) turns the raw buffer and field
+// list into a NumPy structured array.
+#include <pcl/PCLPointCloud2.h>
+#include <pcl/io/pcd_io.h>
+
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <sys/stat.h>
+
+#include "common.hpp"
+
+namespace example_pcl {
+namespace {
+
+constexpr int kAscii = 0, kBinary = 1, kBinaryCompressed = 2;
+
+py::list fields_to_python(const std::vector<pcl::PCLPointField>& fields) {
+  py::list out;
+  for (const auto& f : fields)
+    out.append(py::make_tuple(f.name, f.offset, static_cast<int>(f.datatype), f.count));
+  return out;
+}
+
+std::string file_error(const std::string& path, const std::string& why) {
+  return "cannot read PCD file '" + path + "': " + why;
+}
+
+// PCL trusts the header's point count and the compressed block's sizes; a truncated or forged file
+// would make it read past the end of its mapping or allocate without bound. Check them first.
+void check_body_fits(const std::string& path, const pcl::PCLPointCloud2& header, int data_type,
+                     unsigned int data_idx) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0) throw std::invalid_argument(file_error(path, std::strerror(errno)));
+  const std::uint64_t file_size = static_cast<std::uint64_t>(st.st_size);
+  const std::uint64_t points = static_cast<std::uint64_t>(header.width) * header.height;
+  const std::uint64_t body = points * header.point_step;
+  if (header.point_step == 0 && points > 0) throw std::invalid_argument(file_error(path, "no fields in the header"));
+  if (data_idx > file_size) throw std::invalid_argument(file_error(path, "header runs past the end of the file"));
+  const std::uint64_t remaining = file_size - data_idx;
+  if (data_type == kBinary) {
+    if (remaining < body)
+      throw std::invalid_argument(file_error(path, "truncated: " + std::to_string(points) + " points need " +
+                                                       std::to_string(body) + " bytes of data, the file has " +
+                                                       std::to_string(remaining)));
+  } else if (data_type == kBinaryCompressed) {
+    if (points == 0) return;
+    if (remaining < 8) throw std::invalid_argument(file_error(path, "truncated: no compressed block"));
+    std::uint32_t sizes[2] = {0, 0};
+    std::ifstream in(path, std::ios::binary);
+    in.seekg(data_idx);
+    in.read(reinterpret_cast<char*>(sizes), sizeof(sizes));
+    if (!in) throw std::invalid_argument(file_error(path, "cannot read the compressed block's sizes"));
+    if (sizes[0] > remaining - 8)
+      throw std::invalid_argument(file_error(path, "truncated: compressed block of " + std::to_string(sizes[0]) +
+                                                       " bytes, the file has " + std::to_string(remaining - 8)));
+    if (sizes[1] != body)
+      throw std::invalid_argument(file_error(path, "compressed block unpacks to " + std::to_string(sizes[1]) +
+                                                       " bytes, the header's points need " + std::to_string(body)));
+  } else {
+    // ASCII: every point takes at least one character and a separator per value.
+    std::uint64_t values = 0;
+    for (const auto& f : header.fields) values += f.count;
+    if (points * std::max<std::uint64_t>(values, 1) * 2 > remaining + 1)
+      throw std::invalid_argument(file_error(path, "truncated: the header announces " + std::to_string(points) +
+                                                       " points, the file is too short to hold them"));
+  }
+}
+
+py::dict read_pcd(const std::string& path) {
+  pcl::PCDReader reader;
+  auto cloud = std::make_unique<pcl::PCLPointCloud2>();
+  Eigen::Vector4f origin;
+  Eigen::Quaternionf orientation;
+  int version = 0, data_type = 0;
+  unsigned int data_idx = 0;
+  int rc = 0;
+  {
+    py::gil_scoped_release nogil;
+    try {
+      std::ifstream probe(path);
+      if (!probe) throw std::invalid_argument(file_error(path, std::strerror(errno)));
+      rc = reader.readHeader(path, *cloud, origin, orientation, version, data_type, data_idx);
+      if (rc < 0) throw std::invalid_argument(file_error(path, "not a valid PCD header (PCL's readHeader failed)"));
+      check_body_fits(path, *cloud, data_type, data_idx);
+      rc = reader.read(path, *cloud, origin, orientation, version);
+    } catch (const std::invalid_argument&) {
+      throw;
+    } catch (const std::exception& e) {
+      throw std::invalid_argument(file_error(path, e.what()));
+    }
+  }
+  if (rc < 0) throw std::invalid_argument(file_error(path, "PCL's reader rejected the data (code " + std::to_string(rc) + ")"));
+  if (cloud->data.size() != static_cast<size_t>(cloud->width) * cloud->height * cloud->point_step)
+    throw std::invalid_argument(file_error(path, "data size does not match width x height x point size"));
+
+  // The NumPy buffer takes over PCL's data vector: no copy.
+  auto* owned = new std::vector<std::uint8_t>(std::move(cloud->data));
+  py::capsule free_when_done(owned, [](void* p) { delete static_cast<std::vector<std::uint8_t>*>(p); });
+  py::array_t<std::uint8_t> data({static_cast<py::ssize_t>(owned->size())}, {1}, owned->data(), free_when_done);
+
+  py::dict out;
+  out["data"] = data;
+  out["fields"] = fields_to_python(cloud->fields);
+  out["width"] = cloud->width;
+  out["height"] = cloud->height;
+  out["point_step"] = cloud->point_step;
+  out["is_dense"] = static_cast<bool>(cloud->is_dense);
+  out["origin"] = py::make_tuple(origin[0], origin[1], origin[2]);
+  out["orientation"] = py::make_tuple(orientation.w(), orientation.x(), orientation.y(), orientation.z());
+  out["version"] = version;
+  out["format"] = data_type == kAscii ? "ascii" : data_type == kBinary ? "binary" : "binary_compressed";
+  return out;
+}
+
+void write_pcd(const std::string& path, const py::buffer& data, const py::list& fields, std::uint32_t width,
+               std::uint32_t height, std::uint32_t point_step, bool is_dense, const std::array<float, 3>& origin,
+               const std::array<float, 4>& orientation, const std::string& format, int precision) {
+  pcl::PCLPointCloud2 cloud;
+  cloud.width = width;
+  cloud.height = height;
+  cloud.point_step = point_step;
+  cloud.row_step = width * point_step;
+  cloud.is_dense = is_dense;
+  for (const auto& item : fields) {
+    const auto t = item.cast<py::tuple>();
+    if (t.size() != 4) throw std::invalid_argument("each field must be (name, offset, datatype, count)");
+    pcl::PCLPointField f;
+    f.name = t[0].cast<std::string>();
+    f.offset = t[1].cast<std::uint32_t>();
+    f.datatype = t[2].cast<std::uint8_t>();
+    f.count = t[3].cast<std::uint32_t>();
+    if (f.datatype < 1 || f.datatype > 8)
+      throw std::invalid_argument("field '" + f.name + "' has unknown datatype " + std::to_string(f.datatype));
+    if (f.offset + f.count * pcl::getFieldSize(f.datatype) > point_step)
+      throw std::invalid_argument("field '" + f.name + "' runs past point_step " + std::to_string(point_step));
+    cloud.fields.push_back(f);
+  }
+  const py::buffer_info buf = data.request();
+  const size_t nbytes = static_cast<size_t>(buf.size) * buf.itemsize;
+  if (nbytes != static_cast<size_t>(width) * height * point_step)
+    throw std::invalid_argument("data has " + std::to_string(nbytes) + " bytes, width x height x point_step is " +
+                                std::to_string(static_cast<size_t>(width) * height * point_step));
+  if (format != "ascii" && format != "binary" && format != "binary_compressed")
+    throw std::invalid_argument("format must be ascii, binary or binary_compressed, got '" + format + "'");
+  const Eigen::Vector4f o(origin[0], origin[1], origin[2], 0.f);
+  const Eigen::Quaternionf q(orientation[0], orientation[1], orientation[2], orientation[3]);
+  int rc = 0;
+  {
+    cloud.data.assign(static_cast<const std::uint8_t*>(buf.ptr), static_cast<const std::uint8_t*>(buf.ptr) + nbytes);
+    py::gil_scoped_release nogil;
+    pcl::PCDWriter writer;
+    try {
+      if (format == "ascii")
+        rc = writer.writeASCII(path, cloud, o, q, precision);
+      else if (format == "binary")
+        rc = writer.writeBinary(path, cloud, o, q);
+      else
+        rc = writer.writeBinaryCompressed(path, cloud, o, q);
+    } catch (const std::exception& e) {
+      throw std::runtime_error("cannot write PCD file '" + path + "': " + e.what());
+    }
+  }
+  if (rc < 0) throw std::runtime_error("cannot write PCD file '" + path + "' (PCL's writer returned " + std::to_string(rc) + ")");
+}
+
+}  // namespace
+
+void bind_io(py::module_& m) {
+  m.def("read_pcd", &read_pcd, py::arg("path"),
+        R"doc(Reads a PCD file (v0.5-0.7; ascii, binary or binary_compressed) with pcl::PCDReader.
+
+Returns a dict: data (uint8 array, the points' bytes, row-major, point_step bytes each, owned by
+the array, not copied), fields (list of (name, offset, datatype, count), datatype as in
+sensor_msgs/PointField), width, height, point_step, is_dense, origin (x, y, z in metres),
+orientation (w, x, y, z quaternion), version and format.
+Raises ValueError naming the file when it is missing, truncated or malformed.)doc");
+  m.def("write_pcd", &write_pcd, py::arg("path"), py::arg("data"), py::arg("fields"), py::arg("width"),
+        py::arg("height"), py::arg("point_step"), py::arg("is_dense"), py::arg("origin"), py::arg("orientation"),
+        py::arg("format") = "binary", py::arg("precision") = 8,
+        R"doc(Writes a PCD v0.7 file with pcl::PCDWriter (writeASCII, writeBinary or writeBinaryCompressed).
+
+data: any buffer of width * height * point_step bytes; fields: list of (name, offset, datatype,
+count); origin: (x, y, z) metres; orientation: (w, x, y, z); format: "ascii", "binary" or
+"binary_compressed"; precision: significant digits of floats in ascii.
+Writes straight to path: callers wanting an atomic file write to a temporary name and rename.
+Raises ValueError for inconsistent arguments, RuntimeError when PCL cannot write.)doc");
+}
+
+}  // namespace example_pcl
