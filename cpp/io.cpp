@@ -37,7 +37,8 @@ void check_body_fits(const std::string& path, const pcl::PCLPointCloud2& header,
   const std::uint64_t file_size = static_cast<std::uint64_t>(st.st_size);
   const std::uint64_t points = static_cast<std::uint64_t>(header.width) * header.height;
   const std::uint64_t body = points * header.point_step;
-  if (header.point_step == 0 && points > 0) throw std::invalid_argument(file_error(path, "no fields in the header"));
+  if (header.fields.empty() || header.point_step == 0)
+    throw std::invalid_argument(file_error(path, "no FIELDS in the header"));
   if (data_idx > file_size) throw std::invalid_argument(file_error(path, "header runs past the end of the file"));
   const std::uint64_t remaining = file_size - data_idx;
   if (data_type == kBinary) {
@@ -66,6 +67,15 @@ void check_body_fits(const std::string& path, const pcl::PCLPointCloud2& header,
     if (points * std::max<std::uint64_t>(values, 1) * 2 > remaining + 1)
       throw std::invalid_argument(file_error(path, "truncated: the header announces " + std::to_string(points) +
                                                        " points, the file is too short to hold them"));
+    // A cut inside the last number still parses; every writer ends the last point with a newline.
+    if (points > 0 && file_size > 0) {
+      std::ifstream in(path, std::ios::binary);
+      in.seekg(static_cast<std::streamoff>(file_size - 1));
+      char last = 0;
+      in.get(last);
+      if (last != '\n' && last != '\r' && last != ' ' && last != '\t')
+        throw std::invalid_argument(file_error(path, "truncated: the last line has no end (cut off?)"));
+    }
   }
 }
 
@@ -85,7 +95,12 @@ py::dict read_pcd(const std::string& path) {
       rc = reader.readHeader(path, *cloud, origin, orientation, version, data_type, data_idx);
       if (rc < 0) throw std::invalid_argument(file_error(path, "not a valid PCD header (PCL's readHeader failed)"));
       check_body_fits(path, *cloud, data_type, data_idx);
-      rc = reader.read(path, *cloud, origin, orientation, version);
+      // PCL's read() crashes on some files without points (an empty file passes readHeader);
+      // the header already holds everything an empty cloud has.
+      if (static_cast<std::uint64_t>(cloud->width) * cloud->height > 0)
+        rc = reader.read(path, *cloud, origin, orientation, version);
+      else
+        cloud->data.clear();
     } catch (const std::invalid_argument&) {
       throw;
     } catch (const std::exception& e) {
@@ -179,7 +194,7 @@ orientation (w, x, y, z quaternion), version and format.
 Raises ValueError naming the file when it is missing, truncated or malformed.)doc");
   m.def("write_pcd", &write_pcd, py::arg("path"), py::arg("data"), py::arg("fields"), py::arg("width"),
         py::arg("height"), py::arg("point_step"), py::arg("is_dense"), py::arg("origin"), py::arg("orientation"),
-        py::arg("format") = "binary", py::arg("precision") = 8,
+        py::arg("format") = "binary", py::arg("precision") = 9,
         R"doc(Writes a PCD v0.7 file with pcl::PCDWriter (writeASCII, writeBinary or writeBinaryCompressed).
 
 data: any buffer of width * height * point_step bytes; fields: list of (name, offset, datatype,

@@ -1,0 +1,227 @@
+"""example_pcl._native against NumPy references: transforms, filters, centroids, normals, RANSAC."""
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose, assert_array_equal
+
+from example_pcl import _native
+
+
+def rigid(rx=0.3, ry=-0.2, rz=1.1, t=(0.5, -1.0, 2.0)):
+    def rot(axis, a):
+        c, s = np.cos(a), np.sin(a)
+        i, j = [k for k in range(3) if k != axis]
+        m = np.eye(3)
+        m[i, i], m[i, j], m[j, i], m[j, j] = c, -s, s, c
+        return m
+
+    T = np.eye(4)
+    T[:3, :3] = rot(0, rx) @ rot(1, ry) @ rot(2, rz)
+    T[:3, 3] = t
+    return T
+
+
+def reference_transform(points, T):
+    return (points.astype(np.float64) @ T[:3, :3].T + T[:3, 3]).astype(np.float32)
+
+
+@pytest.fixture
+def cloud():
+    rng = np.random.default_rng(1)
+    pts = rng.uniform(-2, 2, (1000, 3)).astype(np.float32)
+    pts[::7] = np.nan
+    return pts
+
+
+def padded_buffer(points, point_step=32, offset=0):
+    """A PointCloud2-like buffer: x, y, z at `offset` inside point_step bytes, and a float32 strided view of it."""
+    buf = np.zeros(len(points) * point_step, np.uint8)
+    view = np.lib.stride_tricks.as_strided(buf[offset:].view(np.float32), shape=(len(points), 3),
+                                           strides=(point_step, 4))
+    view[...] = points
+    return buf, view
+
+
+def test_transform_matches_numpy(cloud):
+    """transform_cloud on (N, 3) equals R p + t, NaN points stay NaN."""
+    T = rigid()
+    out = _native.transform_cloud(cloud, T)
+    assert out.dtype == np.float32 and out.shape == cloud.shape
+    assert_allclose(out, reference_transform(cloud, T), rtol=1e-6, atol=1e-5)
+    assert np.isnan(out[::7]).all()
+
+
+def test_transform_organized_keeps_shape(cloud):
+    """An (H, W, 3) cloud transforms to (H, W, 3), row-major order kept."""
+    organized = cloud[:990].reshape(30, 33, 3)
+    out = _native.transform_cloud(organized, rigid())
+    assert out.shape == (30, 33, 3)
+    assert_allclose(out.reshape(-1, 3), reference_transform(cloud[:990], rigid()), rtol=1e-6, atol=1e-5)
+
+
+def test_transform_strided_view_without_copy(cloud):
+    """A strided float32 view inside a padded point buffer is read in place, and in place written back."""
+    buf, view = padded_buffer(cloud, point_step=32, offset=4)
+    assert not view.flags.c_contiguous
+    T = rigid()
+    assert_allclose(_native.transform_cloud(view, T), reference_transform(cloud, T), rtol=1e-6, atol=1e-5)
+    before = buf.copy()
+    result = _native.transform_cloud(view, T, out=view)
+    assert result is view or np.shares_memory(result, buf)
+    assert_allclose(view, reference_transform(cloud, T), rtol=1e-6, atol=1e-5)
+    # bytes outside x, y, z untouched
+    mask = np.ones(32, bool)
+    mask[4:16] = False
+    assert_array_equal(buf.reshape(-1, 32)[:, mask], before.reshape(-1, 32)[:, mask])
+
+
+def test_transform_non_contiguous_rows():
+    """A column-sliced organized view (row stride != width * point stride) transforms correctly."""
+    base = np.random.default_rng(2).normal(size=(20, 40, 3)).astype(np.float32)
+    view = base[:, ::3]
+    out = _native.transform_cloud(view, rigid())
+    assert_allclose(out, reference_transform(view.reshape(-1, 3), rigid()).reshape(view.shape), rtol=1e-6, atol=1e-5)
+
+
+def test_transform_read_only_in_place_rejected(cloud):
+    """Transforming a read-only array in place raises ValueError, nothing crashes."""
+    cloud.flags.writeable = False
+    with pytest.raises(ValueError, match="read-only"):
+        _native.transform_cloud(cloud, rigid(), out=cloud)
+
+
+@pytest.mark.parametrize("bad, error, text", [
+    (np.zeros((4, 3), np.float64), TypeError, "float64 array of shape \\(4, 3\\)"),
+    (np.zeros((4, 2), np.float32), ValueError, "shape \\(4, 2\\)"),
+    (np.zeros(3, np.float32), ValueError, "shape \\(3,\\)"),
+    (np.zeros((2, 2, 2, 3), np.float32), ValueError, "shape \\(2, 2, 2, 3\\)"),
+])
+def test_bad_points_named_in_error(bad, error, text):
+    """A wrong dtype raises TypeError and a wrong shape ValueError, naming what was received."""
+    with pytest.raises(error, match=text):
+        _native.transform_cloud(bad, np.eye(4))
+    with pytest.raises(error, match=text):
+        _native.filter_z_band(bad, 0.0, 1.0)
+
+
+@pytest.mark.parametrize("T", [np.eye(3), np.full((4, 4), np.nan), np.ones((4, 4))])
+def test_bad_transform_rejected(T):
+    """A transform that is not a finite 4x4 homogeneous matrix raises ValueError."""
+    with pytest.raises(ValueError):
+        _native.transform_cloud(np.zeros((2, 3), np.float32), T)
+
+
+def test_empty_and_one_point():
+    """Empty input gives empty output; one point transforms like any other."""
+    assert _native.transform_cloud(np.zeros((0, 3), np.float32), rigid()).shape == (0, 3)
+    assert _native.filter_above_z(np.zeros((0, 3), np.float32), 0.0).size == 0
+    p = np.array([[1.0, 2.0, 3.0]], np.float32)
+    assert_allclose(_native.transform_cloud(p, rigid()), reference_transform(p, rigid()), rtol=1e-6)
+
+
+def test_large_coordinates():
+    """Coordinates near 1e6 m transform with float32 relative accuracy."""
+    p = np.array([[1e6, -1e6, 5e5]], np.float32)
+    assert_allclose(_native.transform_cloud(p, rigid()), reference_transform(p, rigid()), rtol=1e-6)
+
+
+def test_z_filters_match_numpy(cloud):
+    """filter_z_band and filter_above_z return the indices NumPy's comparisons give; NaN never kept."""
+    z = cloud[:, 2]
+    with np.errstate(invalid="ignore"):
+        assert_array_equal(_native.filter_z_band(cloud, 0.5, 0.25), np.flatnonzero(np.abs(z - 0.5) <= 0.25))
+        assert_array_equal(_native.filter_above_z(cloud, 0.1), np.flatnonzero(z > 0.1))
+    assert _native.filter_z_band(cloud, 0.0, 1.0).dtype == np.int64
+    with pytest.raises(ValueError):
+        _native.filter_z_band(cloud, 0.0, -1.0)
+
+
+def test_z_filter_on_strided_organized_view(cloud):
+    """Indices from an organized strided view count points row-major."""
+    _, view = padded_buffer(cloud[:990], point_step=20)
+    organized = np.lib.stride_tricks.as_strided(view, shape=(30, 33, 3), strides=(33 * 20, 20, 4))
+    with np.errstate(invalid="ignore"):
+        assert_array_equal(_native.filter_above_z(organized, 0.0), np.flatnonzero(cloud[:990, 2] > 0))
+
+
+def test_extract_and_bounds(cloud):
+    """extract gathers the indexed points; an out-of-range index raises ValueError."""
+    idx = np.array([3, 0, 999, 7])
+    assert_array_equal(_native.extract(cloud, idx), cloud[idx])
+    with pytest.raises(ValueError, match="out of range"):
+        _native.extract(cloud, np.array([1000]))
+    with pytest.raises(ValueError, match="out of range"):
+        _native.extract(cloud, np.array([-1]))
+    with pytest.raises(TypeError):
+        _native.extract(cloud, np.array([0.5]))
+
+
+def test_centroid_skips_nan_and_inf(cloud):
+    """centroid averages only finite points, optionally only the indexed ones."""
+    cloud[1] = [np.inf, 0, 0]
+    finite = np.isfinite(cloud).all(axis=1)
+    assert_allclose(_native.centroid(cloud), cloud[finite].astype(np.float64).mean(axis=0), rtol=1e-9)
+    idx = np.array([0, 1, 2, 7, 8])
+    sub = cloud[idx][np.isfinite(cloud[idx]).all(axis=1)]
+    assert_allclose(_native.centroid(cloud, idx), sub.astype(np.float64).mean(axis=0), rtol=1e-9)
+    with pytest.raises(ValueError, match="no finite"):
+        _native.centroid(np.full((5, 3), np.nan, np.float32))
+
+
+def test_squared_distances(cloud):
+    """squared_distances equals |p - c|^2, NaN for NaN points."""
+    c = np.array([0.1, -0.2, 0.3])
+    assert_allclose(_native.squared_distances(cloud, c), ((cloud - c) ** 2).sum(axis=1), rtol=1e-5, equal_nan=True)
+
+
+def test_normal_of_plane_matches_eigh():
+    """compute_point_normal gives the least-squares plane NumPy's covariance + eigh gives, curvature ~0."""
+    rng = np.random.default_rng(3)
+    n = np.array([0.2, -0.3, 0.9])
+    n /= np.linalg.norm(n)
+    u = np.cross(n, [1, 0, 0])
+    u /= np.linalg.norm(u)
+    v = np.cross(n, u)
+    a, b = rng.uniform(-0.1, 0.1, (2, 500))
+    pts = (np.outer(a, u) + np.outer(b, v) + [0.3, 0.1, 1.2] + np.outer(rng.normal(0, 1e-3, 500), n)).astype(np.float32)
+    pts[::10] = np.nan
+    plane, curvature = _native.compute_point_normal(pts)
+    good = pts[np.isfinite(pts).all(axis=1)].astype(np.float64)
+    w, V = np.linalg.eigh(np.cov(good.T))
+    ref = V[:, 0]
+    assert abs(abs(plane[:3] @ ref) - 1) < 1e-5
+    assert_allclose(plane[:3] @ good.mean(axis=0) + plane[3], 0, atol=1e-5)
+    assert_allclose(curvature, w[0] / w.sum(), rtol=1e-3, atol=1e-7)
+
+
+@pytest.mark.parametrize("n", [0, 1, 2])
+def test_normal_needs_three_points(n):
+    """Fewer than three finite points raise ValueError saying so."""
+    pts = np.ones((n, 3), np.float32)
+    with pytest.raises(ValueError, match="at least 3"):
+        _native.compute_point_normal(pts)
+    with pytest.raises(ValueError, match="at least 3"):
+        _native.compute_point_normal(np.full((10, 3), np.nan, np.float32))
+
+
+def test_normal_with_indices():
+    """compute_point_normal with indices uses only those points."""
+    pts = np.zeros((6, 3), np.float32)
+    pts[:3] = [[0, 0, 1], [1, 0, 1], [0, 1, 1]]  # plane z = 1
+    pts[3:] = [[5, 5, 9], [7, 1, -3], [2, 8, 4]]
+    plane, _ = _native.compute_point_normal(pts, np.array([0, 1, 2]))
+    assert_allclose(abs(plane[2]), 1, atol=1e-6)
+    assert_allclose(plane[3] / plane[2], -1, atol=1e-6)
+
+
+def test_segment_plane_finds_dominant_plane():
+    """segment_plane finds a noisy plane among outliers, inliers index the input, NaN skipped."""
+    rng = np.random.default_rng(4)
+    plane_pts = np.c_[rng.uniform(-1, 1, (2000, 2)), rng.normal(0.8, 0.002, 2000)]
+    outliers = rng.uniform(-1, 1, (500, 3))
+    pts = np.r_[plane_pts, outliers, np.full((10, 3), np.nan)].astype(np.float32)
+    plane, inliers = _native.segment_plane(pts, 0.01, 200)
+    assert_allclose(abs(plane[2]), 1, atol=1e-3)
+    assert_allclose(-plane[3] / plane[2], 0.8, atol=2e-3)
+    assert (inliers < 2000).mean() > 0.95 and len(inliers) > 1900
+    plane2, _ = _native.segment_plane(pts, 0.01, 200, axis=(0, 0, 1), eps_angle=0.1)
+    assert_allclose(abs(plane2[2]), 1, atol=1e-3)
