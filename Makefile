@@ -13,10 +13,15 @@ PYTEST_ARGS ?=
 setup:
 	@tools/setup.sh
 
-# The package is built as a real catkin workspace: build/ws/src/example_pcl links to this checkout.
+# The package is built in a real catkin workspace, build/ws. Its src/example_pcl holds links to this
+# checkout's top-level entries except build/ itself: a link to the whole checkout would put the
+# workspace inside its own package (a loop that rosrun's `find -L` walks into).
 build: setup
-	@mkdir -p $(WS)/src
-	@ln -sfn ../../.. $(WS)/src/example_pcl
+	@if [ -L $(WS)/src/example_pcl ]; then rm $(WS)/src/example_pcl; fi
+	@mkdir -p $(WS)/src/example_pcl
+	@find $(WS)/src/example_pcl -maxdepth 1 -type l -delete
+	@for entry in $(filter-out $(CURDIR)/build,$(wildcard $(CURDIR)/*)); do ln -s $$entry $(WS)/src/example_pcl/; done
+	@if [ ! -f $(WS)/build/CMakeCache.txt ]; then rm -rf $(WS)/build; fi
 	@cd $(WS) && catkin_make -DPYTHON_EXECUTABLE=$(PYTHON) -DCMAKE_BUILD_TYPE=Release > $(WS)/catkin_make.log 2>&1 \
 	  || { tail -n 60 $(WS)/catkin_make.log; echo "build failed: full log in $(WS)/catkin_make.log"; exit 1; }
 	@echo "build: ok ($(WS))"

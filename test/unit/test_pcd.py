@@ -174,3 +174,13 @@ def test_atomic_write_replaces_whole_file(tmp_path, rich_points):
     pcd.write_pcd(path, rich_points)
     assert [p.name for p in tmp_path.iterdir()] == ["x.pcd"]
     assert pcd.read_pcd(path).points.shape == rich_points.shape
+
+
+def test_written_file_mode_follows_umask(tmp_path, rich_points):
+    """A written file gets the usual mode (0666 less the umask), not the temporary file's 0600."""
+    umask = os.umask(0o022)
+    try:
+        pcd.write_pcd(tmp_path / "m.pcd", rich_points)
+    finally:
+        os.umask(umask)
+    assert (tmp_path / "m.pcd").stat().st_mode & 0o777 == 0o644
