@@ -1,0 +1,476 @@
+"""Table plane, plane frame, patches and the can's cylinder fit: pure functions on NumPy arrays.
+
+Units are metres and radians. "Sensor" is the camera optical frame the cloud arrives in (x right,
+y down, z forward). The *plane frame* has its z axis along the table normal (toward the sensor),
+its origin on the table and its x axis as close as possible to the sensor's x axis, so a can
+standing on the table is a circle of constant radius in the plane frame's x, y.
+
+Transforms are 4x4 float64 homogeneous matrices named ``T_a_from_b``: ``p_a = T_a_from_b @ p_b``.
+
+Work over whole scenes (transforming, banding, extracting) goes through the compiled core,
+``example_pcl._native`` (PCL and Eigen); operator selections and fits are small and stay in NumPy.
+Every domain failure raises :class:`~example_pcl.errors.PerceptionError` saying what to do next.
+"""
+from dataclasses import dataclass
+
+import numpy as np
+
+from example_pcl import _native
+from example_pcl.errors import PerceptionError
+
+# --- results --------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, eq=False)
+class Plane:
+    """A plane ``normal . p + d = 0`` in the sensor frame.
+
+    normal: unit float64 (3,), turned toward the viewpoint (sensor); d: offset (m), the sensor's
+    distance from the plane when the viewpoint is the sensor at the origin; centroid: float64 (3,)
+    of the points it was fitted to (m); curvature: l0 / (l0 + l1 + l2) of their covariance
+    (0 = flat); n_points: how many points it was fitted to.
+    """
+
+    normal: np.ndarray
+    d: float
+    centroid: np.ndarray
+    curvature: float
+    n_points: int
+
+    @property
+    def coefficients(self):
+        """[nx, ny, nz, d] as float64 (4,), the layout PCL uses."""
+        return np.append(self.normal, self.d)
+
+    def signed_distance(self, points):
+        """Signed distance (m) of points (..., 3) from the plane, positive on the normal's side."""
+        return np.asarray(points, dtype=float) @ self.normal + self.d
+
+
+@dataclass(frozen=True, eq=False)
+class CylinderFit:
+    """The result of a circle fit in the plane frame's x, y (the can seen from above).
+
+    cx, cy: centre (m, plane frame); radius (m; the given one for fit_cylinder_center);
+    rms_error: root mean square radial residual of the inliers (m); iterations: taken;
+    n_inliers: points with |residual| <= r_eps at the end; converged: the last step was below
+    tol; arc_coverage: angular span of the inliers around the centre (rad, 0..2 pi; about pi
+    for the visible half of a can); inliers: int64 indices of the inliers into the xy passed in.
+    """
+
+    cx: float
+    cy: float
+    radius: float
+    rms_error: float
+    iterations: int
+    n_inliers: int
+    converged: bool
+    arc_coverage: float
+    inliers: np.ndarray
+
+    @property
+    def center(self):
+        """(cx, cy) as float64 (2,), metres in the plane frame."""
+        return np.array([self.cx, self.cy])
+
+
+# --- helpers --------------------------------------------------------------------------------------
+
+
+def _float32_points(points):
+    """points as float32 (N, 3) or (H, W, 3) for the native core; a float32 array is passed as is
+    (any strides, no copy)."""
+    pts = np.asarray(points, dtype=np.float32)
+    if pts.ndim not in (2, 3) or pts.shape[-1] != 3:
+        raise PerceptionError(f"points must be an array of shape (N, 3) or (H, W, 3), got shape {pts.shape}")
+    return pts
+
+
+def _vector3(v, name):
+    v = np.asarray(v, dtype=float)
+    if v.shape != (3,) or not np.isfinite(v).all():
+        raise PerceptionError(f"{name} must be 3 finite numbers, got {v!r}")
+    return v
+
+
+def _unit(v, name):
+    v = _vector3(v, name)
+    norm = np.linalg.norm(v)
+    if not norm > 0:
+        raise PerceptionError(f"{name} must be a non-zero vector, got {v!r}")
+    return v / norm
+
+
+def _oriented_plane(normal, centroid, curvature, n_points, viewpoint):
+    """The plane through `centroid` with `normal` turned toward `viewpoint`.
+
+    d is computed from the turned normal, so it flips with it and normal . centroid + d = 0
+    always holds (the original seed flipped the normal but kept PCL's d).
+    """
+    if normal @ (viewpoint - centroid) < 0:
+        normal = -normal
+    return Plane(normal=normal, d=float(-normal @ centroid), centroid=centroid,
+                 curvature=float(curvature), n_points=int(n_points))
+
+
+# --- patches and planes ---------------------------------------------------------------------------
+
+
+def clean_patch(points):
+    """The operator's selection, cleaned: float64 (K, 3), metres, sensor frame.
+
+    points: (N, 3) or (H, W, 3), any float dtype. Non-finite points are dropped; then, about
+    the centroid of the rest, points whose distance r_i exceeds mean(r) + std(r) are dropped
+    (stray points from behind or beside the patch). The rule is on distances, not on squared
+    distances: the original seed kept r_i^2 < mean(r^2), which is not "within one standard
+    deviation".
+
+    Raises PerceptionError when fewer than 3 points remain: select a larger patch.
+    """
+    pts = np.asarray(points, dtype=float)
+    if pts.size == 0:
+        raise PerceptionError("the patch is empty; select a larger patch")
+    if pts.shape[-1] != 3:
+        raise PerceptionError(f"a patch must be points of shape (N, 3) or (H, W, 3), got shape {pts.shape}")
+    pts = pts.reshape(-1, 3)
+    pts = pts[np.isfinite(pts).all(axis=1)]
+    if len(pts) < 3:
+        raise PerceptionError(f"the patch has {len(pts)} finite point(s); select a larger patch")
+    center = pts.mean(axis=0)
+    r = np.linalg.norm(pts - center, axis=1)
+    # A rounding allowance so equidistant points (std 0) are all kept, at any coordinate size.
+    slack = 1e-12 * (np.abs(center).max() + r.mean())
+    kept = pts[r <= r.mean() + r.std() + slack]
+    if len(kept) < 3:
+        raise PerceptionError(f"only {len(kept)} point(s) of the patch are near its centre; select a larger patch")
+    return kept
+
+
+def patch_plane(points, viewpoint=(0.0, 0.0, 0.0), line_ratio=1e-4):
+    """Least-squares plane of an operator's patch, normal toward the viewpoint: a Plane.
+
+    points: (N, 3) or (H, W, 3) sensor-frame points (m), cleaned by clean_patch. The plane comes
+    from PCL's computePointNormal (native), fed the points relative to their centroid so large
+    coordinates keep float32 precision; d follows the normal when it is turned toward
+    `viewpoint` (sensor frame, m; the sensor itself by default).
+
+    Raises PerceptionError for fewer than 3 usable points, or when the patch is a line or a
+    point: its second-largest covariance eigenvalue is below `line_ratio` times the largest.
+    """
+    viewpoint = _vector3(viewpoint, "viewpoint")
+    pts = clean_patch(points)
+    centroid = pts.mean(axis=0)
+    rel = pts - centroid
+    eig = np.linalg.eigvalsh(rel.T @ rel / len(rel))  # ascending
+    if not eig[2] > 0 or eig[1] <= line_ratio * eig[2]:
+        raise PerceptionError("the patch is a line (or a single point); select an area of the surface")
+    coefficients, curvature = _native.compute_point_normal(rel.astype(np.float32))
+    normal = coefficients[:3].astype(float)
+    normal /= np.linalg.norm(normal)
+    return _oriented_plane(normal, centroid, curvature, len(pts), viewpoint)
+
+
+def plane_frame(normal, origin, sensor_x=(1.0, 0.0, 0.0)):
+    """T_sensor_from_plane (4x4 float64) of a plane frame.
+
+    z along `normal` (sensor frame, need not be unit), origin at `origin` (m, sensor frame; a
+    point on the plane), x the sensor's x axis `sensor_x` projected onto the plane (so the
+    frame is as little rotated from the sensor as the plane allows), y = z x x. When sensor_x
+    is (nearly) parallel to the normal, the sensor's y axis is projected instead.
+    """
+    z = _unit(normal, "normal")
+    origin = _vector3(origin, "origin")
+    for reference in (_unit(sensor_x, "sensor_x"), np.array([0.0, 1.0, 0.0]), np.array([0.0, 0.0, 1.0])):
+        x = reference - (reference @ z) * z
+        norm = np.linalg.norm(x)
+        if norm > 1e-3:  # more than ~0.06 degrees from the normal: a well-defined direction
+            break
+    x /= norm
+    T = np.eye(4)
+    T[:3, 0], T[:3, 1], T[:3, 2], T[:3, 3] = x, np.cross(z, x), z, origin
+    return T
+
+
+def invert_transform(T):
+    """Inverse of a rigid 4x4 transform (float64): [R t] -> [R^T, -R^T t]."""
+    T = np.asarray(T, dtype=float)
+    if T.shape != (4, 4):
+        raise PerceptionError(f"a transform must be a 4x4 matrix, got shape {T.shape}")
+    R, t = T[:3, :3], T[:3, 3]
+    out = np.eye(4)
+    out[:3, :3] = R.T
+    out[:3, 3] = -R.T @ t
+    return out
+
+
+def plane_inliers(points, T_sensor_from_plane, z_eps):
+    """Points within z_eps (m) of the plane z = 0 of a plane frame.
+
+    points: float32 (N, 3) or (H, W, 3) sensor-frame cloud (a float32 view is not copied).
+    Returns (indices, points_in_plane_frame): int64 indices into the flattened cloud, and the
+    whole cloud transformed into the plane frame (float32, same shape; NaN stays NaN).
+    """
+    pts = _float32_points(points)
+    in_plane = _native.transform_cloud(pts, invert_transform(T_sensor_from_plane))
+    return _native.filter_z_band(in_plane, 0.0, float(z_eps)), in_plane
+
+
+def refine_plane(points, plane, z_eps, viewpoint=(0.0, 0.0, 0.0), iterations=3):
+    """Mode 0's refinement: the table plane from a small or slightly tilted patch plane.
+
+    Each iteration puts a plane frame on the current plane (origin: the current centroid
+    projected onto it), takes the cloud's points within z_eps (m) of it, and fits a least-squares
+    plane to them (native computePointNormal, in the plane frame where coordinates are small),
+    turned toward `viewpoint`. A patch normal off by a few degrees still meets the table in a
+    band many centimetres wide, whose points are all table: one pass already corrects most of
+    the tilt, the next ones the rest. Stops early once the plane no longer moves.
+
+    points: float32 (N, 3) or (H, W, 3) sensor-frame cloud; plane: the starting Plane.
+    Returns (Plane, T_sensor_from_plane, inlier indices): the refined plane, the plane frame on
+    it, and the int64 indices (flattened cloud) of the points within z_eps of it.
+    Raises PerceptionError when fewer than 3 points lie in the band.
+    """
+    viewpoint = _vector3(viewpoint, "viewpoint")
+    if not z_eps > 0:
+        raise PerceptionError(f"z_eps must be > 0 m, got {z_eps}")
+    pts = _float32_points(points)
+
+    def frame_on(p):
+        return plane_frame(p.normal, p.centroid - p.signed_distance(p.centroid) * p.normal)
+
+    for _ in range(max(int(iterations), 1)):
+        T = frame_on(plane)
+        idx, in_plane = plane_inliers(pts, T, z_eps)
+        if len(idx) < 3:
+            raise PerceptionError(f"only {len(idx)} point(s) lie within {z_eps} m of the patch plane; "
+                                  "select a patch on the table or raise z_eps")
+        coefficients, curvature = _native.compute_point_normal(in_plane, idx)
+        R, t = T[:3, :3], T[:3, 3]
+        normal = R @ coefficients[:3].astype(float)
+        normal /= np.linalg.norm(normal)
+        centroid = R @ _native.centroid(in_plane, idx) + t
+        previous = plane
+        plane = _oriented_plane(normal, centroid, curvature, len(idx), viewpoint)
+        if (abs(plane.d - previous.d) < 1e-7 and plane.normal @ previous.normal > 1 - 1e-12):
+            break
+    T = frame_on(plane)
+    idx, _ = plane_inliers(pts, T, z_eps)
+    return plane, T, idx
+
+
+def points_above_plane(points_in_plane_frame, z_threshold, max_height=None):
+    """Indices (int64, flattened) of plane-frame points with z > z_threshold (m), and z <=
+    max_height when given: what stands on the table, neither table nor floor (below it).
+
+    points_in_plane_frame: float32 (N, 3) or (H, W, 3), e.g. from plane_inliers. NaN never kept.
+    """
+    pts = _float32_points(points_in_plane_frame)
+    idx = _native.filter_above_z(pts, float(z_threshold))
+    if max_height is not None:
+        idx = idx[_native.extract(pts, idx)[:, 2] <= max_height]
+    return idx
+
+
+# --- the can --------------------------------------------------------------------------------------
+
+
+def initial_can_center(patch_centroid_plane, radius, sensor_origin_plane):
+    """First guess (cx, cy) (m, plane frame) of a can's axis from a patch on its side.
+
+    The patch lies on the side facing the sensor, so the axis is about one radius further from
+    the sensor than the patch: the patch centroid's (x, y) is moved `radius` along the horizontal
+    direction from the sensor's projection onto the plane to the centroid. (The seed used the
+    centroid itself, a radius short.) sensor_origin_plane: the sensor's position in the plane
+    frame, invert_transform(T_sensor_from_plane)[:3, 3]. Directly below the sensor there is no
+    such direction and the centroid is returned.
+    """
+    c = np.asarray(patch_centroid_plane, dtype=float)[:2]
+    away = c - np.asarray(sensor_origin_plane, dtype=float)[:2]
+    norm = np.linalg.norm(away)
+    if norm < 1e-9:
+        return float(c[0]), float(c[1])
+    c = c + radius * away / norm
+    return float(c[0]), float(c[1])
+
+
+def make_can_cloud(radius, height, n_around=48, n_along=16, rim_ratio=0.85):
+    """Model points of a can in the can frame (origin at the base centre, z up the axis): float32 (N, 3).
+
+    n_along rings of n_around points on the side from z = 0 to z = height (m), plus the lid's
+    rim: a ring of n_around points at z = height, rim_ratio * radius from the axis.
+    """
+    if not (radius > 0 and height > 0 and n_around >= 3 and n_along >= 2):
+        raise PerceptionError("a can model needs radius, height > 0 m, n_around >= 3, n_along >= 2")
+    angle = np.linspace(0, 2 * np.pi, int(n_around), endpoint=False)
+    ring = np.stack([np.cos(angle), np.sin(angle)], axis=1)
+    side = [np.column_stack([radius * ring, np.full(len(ring), z)]) for z in np.linspace(0, height, int(n_along))]
+    rim = np.column_stack([rim_ratio * radius * ring, np.full(len(ring), height)])
+    return np.concatenate(side + [rim]).astype(np.float32)
+
+
+def can_pose(T_sensor_from_plane, cx, cy):
+    """T_sensor_from_can (4x4 float64): the plane frame moved to (cx, cy, 0) (m, plane frame), so
+    its origin is the centre of the can's base on the table and its z the table normal."""
+    shift = np.eye(4)
+    shift[:2, 3] = cx, cy
+    return np.asarray(T_sensor_from_plane, dtype=float) @ shift
+
+
+def _xy(xy):
+    """xy as float64 (N, 2): the first two columns of an (N, 2) or (N, 3) plane-frame array."""
+    xy = np.asarray(xy, dtype=float)
+    if xy.ndim != 2 or xy.shape[1] not in (2, 3):
+        raise PerceptionError(f"xy must be points of shape (N, 2) or (N, 3), got shape {xy.shape}")
+    return xy[:, :2]
+
+
+def _radial(xy, cx, cy):
+    """Distances from (cx, cy) and the unit vectors from the centre to each point (0 at the centre)."""
+    delta = xy - (cx, cy)
+    dist = np.hypot(delta[:, 0], delta[:, 1])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        unit = np.where(dist[:, None] > 0, delta / dist[:, None], 0.0)
+    return dist, unit
+
+
+def radial_error(xy, cx, cy, radius):
+    """Radial residuals of points about a circle, their sum of squares and its gradient.
+
+    xy: (N, 2) or (N, 3) plane-frame points (m; z ignored). Returns (residuals, E, grad):
+    residual_i = |p_i - c| - radius (m, float64 (N,)), E = sum residual_i^2 (m^2), and
+    grad = (dE/dcx, dE/dcy) = -2 sum residual_i (p_i - c) / |p_i - c| (m), float64 (2,).
+    """
+    dist, unit = _radial(_xy(xy), cx, cy)
+    residuals = dist - radius
+    return residuals, float(residuals @ residuals), -2.0 * residuals @ unit
+
+
+def arc_coverage(xy, cx, cy):
+    """Angular span (rad, 0..2 pi) of points around (cx, cy): 2 pi minus the widest empty gap."""
+    xy = _xy(xy)
+    if len(xy) < 2:
+        return 0.0
+    angle = np.sort(np.arctan2(xy[:, 1] - cy, xy[:, 0] - cx))
+    gaps = np.append(np.diff(angle), 2 * np.pi - (angle[-1] - angle[0]))
+    return float(2 * np.pi - gaps.max())
+
+
+def _fit_circle(xy, center0, radius0, free_radius, r_eps, max_iterations, tol, min_inliers, max_shift):
+    """Levenberg-Marquardt on the radial residuals of the points within r_eps of the circle.
+
+    The inlier set is re-evaluated at the start of every iteration; within an iteration the step
+    is damped (Marquardt's diagonal scaling) until it lowers the inliers' sum of squares.
+    Coordinates are taken relative to the start so far-away frames keep their precision.
+    """
+    if not r_eps > 0:
+        raise PerceptionError(f"r_eps must be > 0 m, got {r_eps}")
+    if not radius0 > 0:
+        raise PerceptionError(f"the radius must be > 0 m, got {radius0}")
+    xy = _xy(xy)
+    finite = np.flatnonzero(np.isfinite(xy).all(axis=1))
+    center0 = np.asarray(center0, dtype=float).reshape(2)
+    if not np.isfinite(center0).all():
+        raise PerceptionError(f"the start centre must be finite, got {center0}")
+    min_inliers = max(int(min_inliers), 3 if free_radius else 2)
+    if len(finite) < min_inliers:
+        raise PerceptionError(f"a circle fit needs at least {min_inliers} finite points, got {len(finite)}; "
+                              "select more of the can")
+    pts = xy[finite] - center0
+    params = np.array([0.0, 0.0, radius0])
+    n_free = 3 if free_radius else 2
+    max_shift = 3 * radius0 if max_shift is None else max_shift
+
+    def residuals_jacobian(p, sub):
+        dist, unit = _radial(sub, p[0], p[1])
+        jac = np.column_stack([-unit, -np.ones(len(sub))])[:, :n_free]
+        return dist - p[2], jac
+
+    damping, converged, iteration = 1e-3, False, 0
+    for iteration in range(1, int(max_iterations) + 1):
+        damping = min(damping, 1e6)  # a new inlier set may allow progress a stuck one did not
+        residuals, _ = residuals_jacobian(params, pts)
+        inliers = np.abs(residuals) <= r_eps
+        if inliers.sum() < min_inliers:
+            raise PerceptionError(
+                f"only {int(inliers.sum())} point(s) lie within r_eps = {r_eps} m of the circle at "
+                f"({params[0] + center0[0]:.4f}, {params[1] + center0[1]:.4f}); start nearer the can or raise r_eps")
+        sub = pts[inliers]
+        res, jac = residuals_jacobian(params, sub)
+        cost = res @ res
+        A, g = jac.T @ jac, jac.T @ res
+        step = np.zeros(n_free)
+        while damping < 1e12:
+            trial_step = np.linalg.solve(A + damping * (np.diag(np.diag(A)) + 1e-12 * np.eye(n_free)), -g)
+            trial = params.copy()
+            trial[:n_free] += trial_step
+            trial_res, _ = residuals_jacobian(trial, sub)
+            if trial_res @ trial_res <= cost:
+                step, params, damping = trial_step, trial, max(damping / 10, 1e-12)
+                break
+            damping *= 10  # the step overshot: lean toward gradient descent
+        # (damping reaching 1e12 means no step lowers the cost: already at the minimum)
+        if not (np.isfinite(params).all() and np.hypot(params[0], params[1]) <= max_shift
+                and 0 < params[2] <= max(10 * radius0, radius0 + max_shift)):
+            raise PerceptionError(f"the circle fit diverged (centre moved more than {max_shift} m or radius "
+                                  "left its range); select a patch on the can's side and check the table plane")
+        if np.linalg.norm(step) < tol:
+            converged = True
+            break
+
+    residuals, _ = residuals_jacobian(params, pts)
+    inliers = np.abs(residuals) <= r_eps
+    if inliers.sum() < min_inliers:
+        raise PerceptionError(f"only {int(inliers.sum())} point(s) lie within r_eps = {r_eps} m of the fitted "
+                              "circle; raise r_eps or select a patch on the can")
+    cx, cy = params[:2] + center0
+    return CylinderFit(cx=float(cx), cy=float(cy), radius=float(params[2]),
+                       rms_error=float(np.sqrt(np.mean(residuals[inliers] ** 2))), iterations=iteration,
+                       n_inliers=int(inliers.sum()), converged=converged,
+                       arc_coverage=arc_coverage(pts[inliers], params[0], params[1]),
+                       inliers=finite[inliers].astype(np.int64))
+
+
+def fit_cylinder_center(xy, c0, radius, r_eps, max_iterations=50, tol=1e-6, min_inliers=5, max_shift=None):
+    """Mode 3: the axis (cx, cy) of an upright can of known radius, from its points seen from above.
+
+    xy: (N, 2) or (N, 3) plane-frame points of the can's side (m; z ignored; NaN rows ignored),
+    e.g. points_above_plane below the can's top; c0: start (cx, cy), e.g. initial_can_center;
+    radius (m); r_eps (m): points with |residual| > r_eps are left out, re-decided each iteration.
+    Levenberg-Marquardt over (cx, cy) with the analytic Jacobian of the residuals |p_i - c| - r,
+    run until a step is shorter than tol (m) or max_iterations. Returns a CylinderFit (radius the
+    given one). Raises PerceptionError with fewer than min_inliers inliers, or when the centre
+    wanders more than max_shift (m; default 3 radii) from c0.
+    """
+    return _fit_circle(xy, c0, radius, False, r_eps, max_iterations, tol, min_inliers, max_shift)
+
+
+def fit_cylinder(xy, c0, r0, r_eps, max_iterations=50, tol=1e-6, min_inliers=5, max_shift=None):
+    """fit_cylinder_center with the radius free too: Levenberg-Marquardt over (cx, cy, r) from
+    (c0, r0) (m, plane frame). For the automatic mode, where the can's size is not known;
+    fit_circle_algebraic gives a start. Returns a CylinderFit with the fitted radius."""
+    return _fit_circle(xy, c0, r0, True, r_eps, max_iterations, tol, min_inliers, max_shift)
+
+
+def fit_circle_algebraic(xy):
+    """Kasa's algebraic circle fit: (cx, cy, r) in metres, linear least squares, no start needed.
+
+    xy: (N, 2) or (N, 3) points (z ignored, NaN rows dropped). Minimises sum (|p - c|^2 - r^2)^2,
+    which favours small radii on short arcs: a start for fit_cylinder, not a final answer.
+    Raises PerceptionError with fewer than 3 finite points or (nearly) collinear points.
+    """
+    xy = _xy(xy)
+    xy = xy[np.isfinite(xy).all(axis=1)]
+    if len(xy) < 3:
+        raise PerceptionError(f"a circle needs at least 3 finite points, got {len(xy)}; select more of the can")
+    mean = xy.mean(axis=0)
+    q = xy - mean  # centred, so far-away frames keep their precision
+    A = np.column_stack([2 * q, np.ones(len(q))])
+    b = (q ** 2).sum(axis=1)
+    scale = np.abs(q).max()
+    if not scale > 0:
+        raise PerceptionError("the points coincide; select more of the can")
+    solution, _, rank, sv = np.linalg.lstsq(A / [scale, scale, 1.0], b, rcond=None)
+    if rank < 3 or sv[-1] <= 1e-9 * sv[0]:
+        raise PerceptionError("the points are collinear, no circle through them; select more of the can")
+    a, bb, c = solution[0] / scale, solution[1] / scale, solution[2]
+    return float(a + mean[0]), float(bb + mean[1]), float(np.sqrt(c + a * a + bb * bb))

@@ -1,0 +1,589 @@
+"""Unit tests of example_pcl.geometry: plane frame, patches, mode-0 refinement and cylinder fits.
+
+Needs the compiled extension (source build/ws/devel/setup.bash). Scenes come from
+example_pcl.scene, so every accuracy claim is checked against a known ground truth.
+"""
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose, assert_array_equal
+
+from example_pcl import geometry as g
+from example_pcl import scene as sc
+from example_pcl.errors import PerceptionError
+
+CAN_R, CAN_H = 0.033, 0.122
+
+
+# --- references and helpers -----------------------------------------------------------------------
+
+
+def angle_deg(a, b):
+    """Angle between two unit vectors, degrees."""
+    return np.degrees(np.arccos(np.clip(np.dot(a, b), -1.0, 1.0)))
+
+
+def reference_plane(points):
+    """Total least squares plane: (unit normal, centroid) by SVD, float64."""
+    c = points.mean(axis=0)
+    return np.linalg.svd(points - c)[2][2], c
+
+
+def random_rigid(rng):
+    """A random rigid transform (4x4)."""
+    q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    q *= np.sign(np.linalg.det(q))
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = q, rng.normal(size=3)
+    return T
+
+
+def rotate(v, axis, angle):
+    """v rotated by angle (rad) about the unit axis (Rodrigues)."""
+    return v * np.cos(angle) + np.cross(axis, v) * np.sin(angle) + axis * (axis @ v) * (1 - np.cos(angle))
+
+
+def flat_patch(rng, n=200, normal=(0.0, -0.6, -0.8), center=(0.1, 0.2, 1.0), size=0.05, noise=0.0):
+    """n points on a square patch (m) of the plane through center with the given normal."""
+    normal = np.asarray(normal, float) / np.linalg.norm(normal)
+    T = g.plane_frame(normal, center)
+    uv = rng.uniform(-size / 2, size / 2, size=(n, 2))
+    local = np.column_stack([uv, rng.normal(0, noise, n) if noise else np.zeros(n)])
+    return local @ T[:3, :3].T + T[:3, 3]
+
+
+def circle_points(center, radius, start, stop, n, noise=0.0, rng=None):
+    """n points on an arc of a circle in the plane, angles from start to stop (rad)."""
+    a = np.linspace(start, stop, n)
+    r = radius + (rng.normal(0, noise, n) if noise else 0.0)
+    return np.column_stack([center[0] + r * np.cos(a), center[1] + r * np.sin(a)])
+
+
+def table_patch(scene, center_table, half):
+    """Sensor-frame points of the table top within +-half (m) of center_table (x, y, table frame),
+    as an operator's rectangular selection."""
+    T = np.array(scene.truth["camera_from_table"])
+    P = scene.xyz.reshape(-1, 3).astype(float)
+    q = (P - T[:3, 3]) @ T[:3, :3]
+    on = (scene.labels.reshape(-1) == sc.LABEL_TABLE) & (np.abs(q[:, 0] - center_table[0]) <= half) & (
+        np.abs(q[:, 1] - center_table[1]) <= half)
+    return P[on & np.isfinite(P[:, 2])]
+
+
+def truth_errors(plane, truth):
+    """(angle to the truth table normal in degrees, |d - d_truth| in m)."""
+    return angle_deg(plane.normal, np.array(truth["table"]["normal"])), abs(plane.d - truth["table"]["d"])
+
+
+class Setup:
+    """A generated noisy scene with its table refined (mode 0) and the can's points above it."""
+
+    def __init__(self, spec):
+        self.scene = sc.generate_scene(spec)
+        self.truth = self.scene.truth
+        patch = table_patch(self.scene, (0.15, -0.15), 0.02)
+        self.plane, self.T, _ = g.refine_plane(self.scene.xyz, g.patch_plane(patch), z_eps=0.01)
+        _, self.in_plane = g.plane_inliers(self.scene.xyz, self.T, 0.01)
+        T_plane_sensor = g.invert_transform(self.T)
+        self.sensor = T_plane_sensor[:3, 3]
+        base = T_plane_sensor[:3, :3] @ np.array(self.truth["cans"][0]["base_center"]) + T_plane_sensor[:3, 3]
+        self.center = base[:2]
+        # What stands on the table, below the can's top (its lid is not on the circle).
+        above = g.points_above_plane(self.in_plane, 0.01, max_height=CAN_H - 0.01)
+        pts = self.in_plane.reshape(-1, 3)[above].astype(float)
+        self.can_points = pts[np.hypot(*(pts[:, :2] - self.center).T) < 0.1]
+
+    def side_patch(self, bearing_deg, width_deg=40.0):
+        """Can-side points (plane frame) within width/2 of a bearing from the sensor-facing direction."""
+        toward_sensor = np.arctan2(*(self.sensor[:2] - self.center)[::-1])
+        rel = self.can_points[:, :2] - self.center
+        bearing = np.angle(np.exp(1j * (np.arctan2(rel[:, 1], rel[:, 0]) - toward_sensor)))
+        keep = np.abs(np.degrees(bearing) - bearing_deg) <= width_deg / 2
+        keep &= (self.can_points[:, 2] > 0.02) & (self.can_points[:, 2] < CAN_H - 0.02)
+        return self.can_points[keep]
+
+
+@pytest.fixture(scope="module")
+def setup():
+    return Setup(sc.SceneSpec(seed=11))
+
+
+@pytest.fixture(scope="module", params=[dict(camera_distance=0.8, tilt=1.1, yaw=0.3, seed=12),
+                                        dict(camera_distance=1.5, tilt=0.7, yaw=-0.5, seed=13)])
+def other_setup(request):
+    return Setup(sc.SceneSpec(**request.param))
+
+
+# --- clean_patch ----------------------------------------------------------------------------------
+
+
+def test_clean_patch_drops_nonfinite_points():
+    """NaN and inf points never reach the cleaned patch."""
+    rng = np.random.default_rng(0)
+    pts = flat_patch(rng, 100)
+    pts[::10, 1] = np.nan
+    pts[5, 2] = np.inf
+    out = g.clean_patch(pts)
+    assert np.isfinite(out).all() and out.dtype == np.float64 and len(out) <= 89
+
+
+def test_clean_patch_keeps_within_mean_plus_std_of_distances():
+    """Kept: exactly the points with r <= mean(r) + std(r) about the finite points' centroid."""
+    rng = np.random.default_rng(1)
+    pts = np.vstack([flat_patch(rng, 300), rng.normal(0, 0.3, (20, 3)) + [0.1, 0.2, 1.0]])
+    r = np.linalg.norm(pts - pts.mean(axis=0), axis=1)
+    assert_array_equal(g.clean_patch(pts), pts[r <= r.mean() + r.std()])
+
+
+def test_clean_patch_not_the_seeds_squared_rule():
+    """A point with r^2 above mean(r^2) but r within mean + std is kept (the seed dropped it)."""
+    pts = np.array([[0, 0, 0], [1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 0.1]], float) * 0.01
+    r = np.linalg.norm(pts - pts.mean(axis=0), axis=1)
+    seed_dropped = r ** 2 >= np.mean(r ** 2)
+    assert seed_dropped.any()
+    assert len(g.clean_patch(pts)) == len(pts)
+
+
+def test_clean_patch_keeps_equidistant_points_at_huge_coordinates():
+    """Points all equally far from their centroid (std 0) are all kept, even 1e5 m from the origin."""
+    ring = np.column_stack([np.cos(np.arange(6) / 6 * 2 * np.pi), np.sin(np.arange(6) / 6 * 2 * np.pi), np.zeros(6)])
+    for offset in (0.0, 1e5):
+        assert len(g.clean_patch(0.01 * ring + offset)) == 6
+
+
+def test_clean_patch_accepts_organized_patches():
+    """An (H, W, 3) float32 selection is flattened and its NaN pixels dropped."""
+    rng = np.random.default_rng(2)
+    pts = flat_patch(rng, 48).astype(np.float32).reshape(6, 8, 3)
+    pts[0, 0] = np.nan
+    assert g.clean_patch(pts).shape[1] == 3
+
+
+@pytest.mark.parametrize("points", [
+    np.zeros((0, 3)), np.full((10, 3), np.nan), np.array([[0.0, 0.0, 1.0]]), np.array([[0, 0, 1.0], [0, 0.01, 1.0]]),
+    np.array([[0, 0, 1.0], [0, 0.01, 1.0], [np.nan, 0, 1.0], [0, np.inf, 1.0]]),
+], ids=["empty", "all-nan", "one", "two", "two-finite"])
+def test_clean_patch_too_few_points_raises(points):
+    """Fewer than 3 finite points raise PerceptionError telling to select a larger patch."""
+    with pytest.raises(PerceptionError, match="select a larger patch"):
+        g.clean_patch(points)
+
+
+# --- patch_plane ----------------------------------------------------------------------------------
+
+
+def test_patch_plane_matches_svd_reference():
+    """The patch plane's normal and centroid equal a NumPy SVD fit of the cleaned points."""
+    rng = np.random.default_rng(3)
+    pts = flat_patch(rng, 400, noise=0.002)
+    plane = g.patch_plane(pts)
+    normal, centroid = reference_plane(g.clean_patch(pts))
+    assert_allclose(plane.centroid, centroid, atol=1e-12)
+    assert_allclose(plane.normal, normal * np.sign(normal @ -centroid), atol=2e-5)
+    assert np.linalg.norm(plane.normal) == pytest.approx(1.0)
+    assert plane.n_points == len(g.clean_patch(pts))
+
+
+def test_patch_plane_faces_viewpoint_and_d_follows():
+    """The normal points to the viewpoint, and d flips with it: normal . centroid + d = 0 both ways."""
+    rng = np.random.default_rng(4)
+    pts = flat_patch(rng, 200, normal=(0, 0, 1), center=(0, 0, 1.0))  # the plane z = 1
+    toward_sensor = g.patch_plane(pts)
+    assert_allclose(toward_sensor.normal, [0, 0, -1], atol=1e-6)
+    assert toward_sensor.d == pytest.approx(1.0, abs=1e-6)
+    beyond = g.patch_plane(pts, viewpoint=(0, 0, 3))
+    assert_allclose(beyond.normal, [0, 0, 1], atol=1e-6)
+    assert beyond.d == pytest.approx(-1.0, abs=1e-6)
+    for plane in (toward_sensor, beyond):
+        assert plane.signed_distance(plane.centroid) == pytest.approx(0.0, abs=1e-12)
+        assert_allclose(plane.coefficients, np.append(plane.normal, plane.d))
+
+
+def test_patch_plane_flat_patch_has_zero_curvature():
+    """A noise-free flat patch has curvature ~0; all its points satisfy the plane equation."""
+    rng = np.random.default_rng(5)
+    pts = flat_patch(rng, 100)
+    plane = g.patch_plane(pts)
+    assert plane.curvature == pytest.approx(0.0, abs=1e-6)
+    assert_allclose(plane.signed_distance(pts), 0.0, atol=1e-6)
+
+
+def test_patch_plane_at_huge_coordinates():
+    """A patch 1e5 m from the sensor keeps an accurate normal (fitted about its centroid)."""
+    rng = np.random.default_rng(6)
+    pts = flat_patch(rng, 100, normal=(0.3, -0.4, -1.0), center=(1e5, -1e5, 1e5), size=0.2)
+    plane = g.patch_plane(pts)
+    expected = -np.array([0.3, -0.4, -1.0]) / np.linalg.norm([0.3, -0.4, -1.0])  # toward the origin
+    assert_allclose(plane.normal, expected * np.sign(expected @ -plane.centroid), atol=1e-6)
+
+
+@pytest.mark.parametrize("points, message", [
+    (np.zeros((0, 3)), "select a larger patch"),
+    (np.full((5, 3), np.nan), "select a larger patch"),
+    (np.array([[0.0, 0.0, 1.0]]), "select a larger patch"),
+    (np.array([[0, 0, 1.0], [0.01, 0, 1.0]]), "select a larger patch"),
+    (np.column_stack([np.linspace(0, 0.1, 20), np.linspace(0, 0.05, 20), np.full(20, 1.0)]), "line"),
+    (np.tile([0.1, 0.2, 1.0], (10, 1)), "line"),
+    (np.column_stack([np.linspace(0, 0.1, 20), np.zeros(20), np.full(20, 1.0)]) + 1e5, "line"),
+], ids=["empty", "all-nan", "one", "two", "collinear", "coincident", "collinear-huge"])
+def test_patch_plane_degenerate_raises(points, message):
+    """Too few, collinear or coincident points raise PerceptionError saying what to select."""
+    with pytest.raises(PerceptionError, match=message):
+        g.patch_plane(points)
+
+
+# --- frames ---------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("normal", [(0, 0, -1), (0, -0.6, -0.8), (0.3, -0.9, -0.2), (1, 0, 0), (-1, 1e-5, 0),
+                                    (0, 1, 0), (0.7, 0.1, 0.7)])
+def test_plane_frame_orthonormal_right_handed_x_near_sensor_x(normal):
+    """plane_frame is a rigid right-handed frame with z the normal and x the nearest to sensor x."""
+    origin = np.array([0.1, -0.2, 1.3])
+    T = g.plane_frame(normal, origin)
+    R = T[:3, :3]
+    n = np.asarray(normal, float) / np.linalg.norm(normal)
+    assert_allclose(R.T @ R, np.eye(3), atol=1e-12)
+    assert np.linalg.det(R) == pytest.approx(1.0)
+    assert_allclose(np.cross(R[:, 0], R[:, 1]), R[:, 2], atol=1e-12)
+    assert_allclose(R[:, 2], n, atol=1e-12)
+    assert_allclose(T[:3, 3], origin)
+    assert_allclose(T[3], [0, 0, 0, 1])
+    if abs(n[0]) < 0.999:
+        # the unit vector in the plane closest to (1, 0, 0) has x component sqrt(1 - n_x^2)
+        assert R[0, 0] == pytest.approx(np.sqrt(1 - n[0] ** 2), abs=1e-12)
+    else:  # sensor x along the normal: x falls back to sensor y projected
+        assert R[1, 0] == pytest.approx(np.sqrt(1 - n[1] ** 2), abs=1e-9)
+
+
+@pytest.mark.parametrize("normal", [(0, 0, 0), (np.nan, 0, 1), (1, 2)])
+def test_plane_frame_rejects_bad_normal(normal):
+    """A zero, non-finite or wrongly sized normal raises PerceptionError."""
+    with pytest.raises(PerceptionError):
+        g.plane_frame(normal, (0, 0, 0))
+
+
+def test_invert_transform_is_inverse():
+    """invert_transform(T) @ T and T @ invert_transform(T) are the identity; it equals np.linalg.inv."""
+    rng = np.random.default_rng(7)
+    for _ in range(10):
+        T = random_rigid(rng)
+        Ti = g.invert_transform(T)
+        assert_allclose(Ti @ T, np.eye(4), atol=1e-12)
+        assert_allclose(T @ Ti, np.eye(4), atol=1e-12)
+        assert_allclose(Ti, np.linalg.inv(T), atol=1e-12)
+
+
+def test_plane_inliers_match_numpy_reference():
+    """plane_inliers transforms like NumPy (NaN kept) and keeps |z| <= z_eps in the plane frame."""
+    rng = np.random.default_rng(8)
+    pts = rng.uniform(-1, 1, (50, 40, 3)).astype(np.float32)
+    pts[3, 4] = np.nan
+    T = random_rigid(rng)
+    idx, in_plane = g.plane_inliers(pts, T, 0.1)
+    reference = pts.reshape(-1, 3).astype(float) @ np.linalg.inv(T)[:3, :3].T + np.linalg.inv(T)[:3, 3]
+    assert in_plane.shape == pts.shape and in_plane.dtype == np.float32
+    assert_allclose(in_plane.reshape(-1, 3), reference, atol=1e-5)
+    assert np.isnan(in_plane[3, 4]).all()
+    z = in_plane.reshape(-1, 3)[:, 2]
+    with np.errstate(invalid="ignore"):
+        assert_array_equal(idx, np.flatnonzero(np.abs(z) <= 0.1))
+
+
+def test_plane_inliers_reads_strided_views():
+    """A strided float32 view (x, y, z inside a wider record) gives the same result as a copy."""
+    rng = np.random.default_rng(9)
+    buffer = rng.uniform(-1, 1, (200, 8)).astype(np.float32)
+    view = buffer[:, 2:5]  # not contiguous: row stride 32 bytes
+    T = random_rigid(rng)
+    idx_view, pp_view = g.plane_inliers(view, T, 0.2)
+    idx_copy, pp_copy = g.plane_inliers(np.ascontiguousarray(view), T, 0.2)
+    assert_array_equal(idx_view, idx_copy)
+    assert_array_equal(pp_view, pp_copy)
+
+
+@pytest.mark.parametrize("max_height", [None, 0.3])
+def test_points_above_plane_matches_reference(max_height):
+    """points_above_plane keeps z > threshold (and z <= max_height), never NaN."""
+    rng = np.random.default_rng(10)
+    pts = rng.uniform(-1, 1, (500, 3)).astype(np.float32)
+    pts[::7] = np.nan
+    idx = g.points_above_plane(pts, 0.05, max_height=max_height)
+    z = pts[:, 2]
+    with np.errstate(invalid="ignore"):
+        keep = (z > 0.05) & ((z <= max_height) if max_height is not None else True)
+    assert_array_equal(idx, np.flatnonzero(keep))
+    assert idx.dtype == np.int64
+
+
+# --- mode 0: the table plane ----------------------------------------------------------------------
+
+
+def test_refine_plane_from_small_noisy_patch(setup):
+    """A 2 cm noisy table patch, refined, gives the table normal within 0.3 deg and d within 2 mm."""
+    patch = table_patch(setup.scene, (-0.1, -0.1), 0.01)
+    start = g.patch_plane(patch)
+    plane, T, inliers = g.refine_plane(setup.scene.xyz, start, z_eps=0.01)
+    angle, offset = truth_errors(plane, setup.truth)
+    assert angle < 0.3 and offset < 0.002
+    assert len(inliers) > 100000
+    assert_allclose(T[:3, 2], plane.normal)
+    assert plane.signed_distance(T[:3, 3]) == pytest.approx(0.0, abs=1e-9)  # frame origin on the plane
+
+
+@pytest.mark.parametrize("tilt_deg, axis", [(5, (1, 0, 0)), (5, (0, 1, 0)), (-5, (1, 1, 0)), (3, (0.3, 1, 0.5))])
+def test_refine_plane_from_tilted_patch(setup, tilt_deg, axis):
+    """A patch plane tilted 3-5 deg off the table still refines to within 0.3 deg and 2 mm."""
+    patch = table_patch(setup.scene, (0.0, -0.2), 0.03)
+    true_normal = np.array(setup.truth["table"]["normal"])
+    axis = np.cross(true_normal, np.cross(axis, true_normal))  # in the table plane
+    axis /= np.linalg.norm(axis)
+    normal = rotate(true_normal, axis, np.radians(tilt_deg))
+    centroid = patch.mean(axis=0)
+    start = g.Plane(normal=normal, d=float(-normal @ centroid), centroid=centroid, curvature=0.0, n_points=len(patch))
+    assert truth_errors(start, setup.truth)[0] == pytest.approx(abs(tilt_deg), abs=0.01)
+    plane, _, _ = g.refine_plane(setup.scene.xyz, start, z_eps=0.01)
+    angle, offset = truth_errors(plane, setup.truth)
+    assert angle < 0.3 and offset < 0.002
+
+
+def test_refine_plane_on_other_views(other_setup):
+    """Refinement meets 0.3 deg / 2 mm at other distances, tilts and headings too."""
+    angle, offset = truth_errors(other_setup.plane, other_setup.truth)
+    assert angle < 0.3 and offset < 0.002
+
+
+def test_refine_plane_empty_band_raises(setup):
+    """A plane with no cloud points near it raises PerceptionError (select a patch on the table)."""
+    normal = np.array(setup.truth["table"]["normal"])
+    centroid = -normal * 10.0  # 10 m behind the sensor
+    far = g.Plane(normal=normal, d=float(-normal @ centroid), centroid=centroid, curvature=0.0, n_points=3)
+    with pytest.raises(PerceptionError, match="select a patch on the table"):
+        g.refine_plane(setup.scene.xyz, far, z_eps=0.01)
+
+
+# --- the can --------------------------------------------------------------------------------------
+
+
+def test_radial_error_matches_reference():
+    """Residuals are |p - c| - r, E their sum of squares; (N, 3) input uses x, y only."""
+    rng = np.random.default_rng(11)
+    xy = rng.normal(size=(30, 2))
+    residuals, E, _ = g.radial_error(xy, 0.1, -0.2, 0.5)
+    expected = np.hypot(xy[:, 0] - 0.1, xy[:, 1] + 0.2) - 0.5
+    assert_allclose(residuals, expected, rtol=1e-12)
+    assert E == pytest.approx(np.sum(expected ** 2), rel=1e-12)
+    xyz = np.column_stack([xy, rng.normal(size=30)])
+    assert_allclose(g.radial_error(xyz, 0.1, -0.2, 0.5)[0], expected, rtol=1e-12)
+
+
+@pytest.mark.parametrize("center", [(0.0, 0.0), (0.01, -0.02), (0.5, 0.3), (-0.03, 0.1)])
+def test_radial_error_gradient_matches_finite_differences(center):
+    """The analytic gradient of E equals central finite differences."""
+    rng = np.random.default_rng(12)
+    xy = circle_points((0.02, 0.01), 0.033, -2.5, 0.5, 50, noise=0.002, rng=rng)
+    _, _, grad = g.radial_error(xy, *center, 0.033)
+    h = 1e-7
+    numeric = [(g.radial_error(xy, center[0] + h, center[1], 0.033)[1]
+                - g.radial_error(xy, center[0] - h, center[1], 0.033)[1]) / (2 * h),
+               (g.radial_error(xy, center[0], center[1] + h, 0.033)[1]
+                - g.radial_error(xy, center[0], center[1] - h, 0.033)[1]) / (2 * h)]
+    assert_allclose(grad, numeric, rtol=1e-5, atol=1e-9)
+
+
+def test_radial_error_point_at_center_is_finite():
+    """A point exactly at the centre gives residual -r and no NaN in the gradient."""
+    residuals, E, grad = g.radial_error(np.array([[0.0, 0.0], [0.1, 0.0]]), 0.0, 0.0, 0.05)
+    assert_allclose(residuals, [-0.05, 0.05])
+    assert np.isfinite(grad).all()
+
+
+def test_initial_can_center_moves_one_radius_away_from_sensor():
+    """The guess is the patch centroid moved one radius along sensor -> centroid, horizontally."""
+    assert_allclose(g.initial_can_center((0.0, -0.5, 0.06), 0.033, (0.0, -1.5, 0.8)), (0.0, -0.467))
+    assert_allclose(g.initial_can_center((0.3, 0.4, 0.0), 0.05, (0.0, 0.0, 1.0)), (0.33, 0.44))
+    assert g.initial_can_center((0.2, 0.1, 0.05), 0.033, (0.2, 0.1, 1.0)) == (0.2, 0.1)  # straight below
+
+
+def test_initial_can_center_beats_the_centroid(setup):
+    """On a generated can, the guess from a front patch is nearer the axis than the patch centroid."""
+    patch = setup.side_patch(0.0, 30.0)
+    guess = g.initial_can_center(patch.mean(axis=0), CAN_R, setup.sensor)
+    assert np.hypot(*(np.array(guess) - setup.center)) < 0.005
+    assert np.hypot(*(patch.mean(axis=0)[:2] - setup.center)) > 0.025
+
+
+def test_make_can_cloud_points_on_can():
+    """Model points are float32, on the side at the radius between 0 and height, plus the top rim."""
+    cloud = g.make_can_cloud(CAN_R, CAN_H, n_around=36, n_along=10)
+    assert cloud.dtype == np.float32 and cloud.shape == (36 * 11, 3)
+    r = np.hypot(cloud[:, 0], cloud[:, 1])
+    side = cloud[: 36 * 10]
+    assert_allclose(np.hypot(side[:, 0], side[:, 1]), CAN_R, rtol=1e-6)
+    assert side[:, 2].min() == 0 and side[:, 2].max() == pytest.approx(CAN_H)
+    assert_allclose(cloud[36 * 10:, 2], CAN_H)
+    assert (r <= CAN_R * (1 + 1e-6)).all()
+
+
+@pytest.mark.parametrize("args", [(0.0, 0.1), (0.03, -1.0), (0.03, 0.1, 2)])
+def test_make_can_cloud_rejects_bad_sizes(args):
+    """A non-positive size or fewer than 3 points around raises PerceptionError."""
+    with pytest.raises(PerceptionError):
+        g.make_can_cloud(*args)
+
+
+def test_can_pose_origin_at_base_center():
+    """can_pose maps the can-frame origin to (cx, cy, 0) of the plane frame, axes unchanged."""
+    rng = np.random.default_rng(13)
+    T = random_rigid(rng)
+    pose = g.can_pose(T, 0.1, -0.2)
+    assert_allclose(pose[:3, :3], T[:3, :3])
+    assert_allclose(pose @ [0, 0, 0, 1], T @ [0.1, -0.2, 0, 1])
+
+
+def test_fit_center_exact_arc():
+    """On an exact half circle the centre is found to 1e-9 m from 1 cm away, arc coverage pi."""
+    xy = circle_points((0.2, -0.1), CAN_R, 0.0, np.pi, 60)
+    fit = g.fit_cylinder_center(xy, (0.21, -0.1), CAN_R, r_eps=0.01)
+    assert fit.converged and fit.n_inliers == 60
+    assert_allclose(fit.center, (0.2, -0.1), atol=1e-9)
+    assert fit.rms_error < 1e-9 and fit.radius == CAN_R
+    assert fit.arc_coverage == pytest.approx(np.pi, abs=1e-9)
+
+
+def test_fit_center_rejects_outliers():
+    """Points further than r_eps from the circle are not inliers and do not move the centre."""
+    rng = np.random.default_rng(14)
+    xy = np.vstack([circle_points((0.0, 0.0), CAN_R, -2.0, 0.5, 80, noise=0.001, rng=rng),
+                    rng.uniform(0.06, 0.1, (20, 2))])
+    fit = g.fit_cylinder_center(xy, (0.005, 0.005), CAN_R, r_eps=0.006)
+    assert fit.converged
+    assert set(fit.inliers.tolist()) <= set(range(80))
+    assert np.hypot(fit.cx, fit.cy) < 0.001
+
+
+def test_fit_center_at_huge_coordinates():
+    """A can 1e5 m from the frame origin is fitted as precisely as one at the origin."""
+    xy = circle_points((1e5, -1e5), CAN_R, 0.0, np.pi, 60)
+    fit = g.fit_cylinder_center(xy, (1e5 + 0.01, -1e5), CAN_R, r_eps=0.01)
+    assert_allclose(fit.center, (1e5, -1e5), atol=1e-8)
+
+
+@pytest.mark.parametrize("xy", [np.zeros((0, 2)), np.full((10, 2), np.nan), np.array([[0.033, 0.0]]),
+                                np.array([[0.033, 0.0], [0.0, 0.033]])],
+                         ids=["empty", "all-nan", "one", "two"])
+def test_fit_center_too_few_points_raises(xy):
+    """Fewer points than min_inliers raise PerceptionError."""
+    with pytest.raises(PerceptionError, match="at least"):
+        g.fit_cylinder_center(xy, (0.0, 0.0), CAN_R, r_eps=0.01)
+
+
+def test_fit_center_start_far_off_raises():
+    """A start so far off that no point is within r_eps raises PerceptionError (start nearer)."""
+    xy = circle_points((0.0, 0.0), CAN_R, 0.0, np.pi, 60)
+    with pytest.raises(PerceptionError, match="start nearer the can"):
+        g.fit_cylinder_center(xy, (0.5, 0.5), CAN_R, r_eps=0.01)
+
+
+def test_fit_center_nan_rows_ignored():
+    """NaN rows are skipped; inlier indices refer to the rows passed in."""
+    xy = circle_points((0.0, 0.0), CAN_R, 0.0, np.pi, 20)
+    xy[3] = np.nan
+    fit = g.fit_cylinder_center(xy, (0.005, 0.0), CAN_R, r_eps=0.01)
+    assert 3 not in fit.inliers and fit.n_inliers == 19
+    assert np.hypot(fit.cx, fit.cy) < 1e-9
+
+
+@pytest.mark.parametrize("bearing_deg", [-70, -35, 0, 35, 70])
+def test_fit_center_from_any_visible_patch(setup, bearing_deg):
+    """From a patch anywhere on the can's visible half the fit lands within 2 mm of the true axis."""
+    patch = setup.side_patch(bearing_deg)
+    assert len(patch) > 30
+    guess = g.initial_can_center(patch.mean(axis=0), CAN_R, setup.sensor)
+    fit = g.fit_cylinder_center(setup.can_points, guess, CAN_R, r_eps=0.01)
+    assert fit.converged
+    assert np.hypot(*(fit.center - setup.center)) < 0.002
+    reference = g.fit_cylinder_center(setup.can_points, setup.center, CAN_R, r_eps=0.01)
+    assert_allclose(fit.center, reference.center, atol=1e-5)  # every start: the same centre
+    assert fit.arc_coverage > np.radians(140)  # the visible half (less the silhouette's edges)
+
+
+@pytest.mark.parametrize("direction_deg", range(0, 360, 45))
+def test_fit_center_converges_from_two_cm_off(setup, direction_deg):
+    """Started 2 cm off the axis in any direction, the fit converges within 2 mm of truth."""
+    a = np.radians(direction_deg)
+    start = setup.center + 0.02 * np.array([np.cos(a), np.sin(a)])
+    fit = g.fit_cylinder_center(setup.can_points, start, CAN_R, r_eps=0.01)
+    assert fit.converged and fit.iterations < 20
+    assert np.hypot(*(fit.center - setup.center)) < 0.002
+    assert fit.rms_error < 0.002
+
+
+def test_fit_center_on_other_views(other_setup):
+    """At other distances, tilts and headings the fit from a front patch is within 2 mm of truth."""
+    patch = other_setup.side_patch(0.0)
+    guess = g.initial_can_center(patch.mean(axis=0), CAN_R, other_setup.sensor)
+    fit = g.fit_cylinder_center(other_setup.can_points, guess, CAN_R, r_eps=0.01)
+    assert fit.converged and np.hypot(*(fit.center - other_setup.center)) < 0.002
+
+
+def test_fitted_can_pose_matches_truth(setup):
+    """The can pose from the fit puts the base centre within 2 mm of the truth, axis within 0.3 deg."""
+    fit = g.fit_cylinder_center(setup.can_points, setup.center + 0.01, CAN_R, r_eps=0.01)
+    pose = g.can_pose(setup.T, fit.cx, fit.cy)
+    can = setup.truth["cans"][0]
+    assert np.linalg.norm(pose[:3, 3] - can["base_center"]) < 0.002
+    assert angle_deg(pose[:3, 2], np.array(can["axis"])) < 0.3
+
+
+def test_fit_cylinder_free_radius(setup):
+    """With the radius free, the fit finds the can's radius within 1 mm and its axis within 2 mm."""
+    start = g.fit_circle_algebraic(setup.can_points)
+    fit = g.fit_cylinder(setup.can_points, start[:2], start[2], r_eps=0.01)
+    assert fit.converged
+    assert fit.radius == pytest.approx(CAN_R, abs=0.001)
+    assert np.hypot(*(fit.center - setup.center)) < 0.002
+
+
+def test_fit_cylinder_exact_circle_from_wrong_radius():
+    """On an exact arc, radius and centre are recovered from a start 1 cm and 20 % off."""
+    xy = circle_points((0.1, 0.2), 0.05, -1.0, 2.0, 80)
+    fit = g.fit_cylinder(xy, (0.11, 0.2), 0.04, r_eps=0.02)
+    assert fit.converged
+    assert_allclose([fit.cx, fit.cy, fit.radius], [0.1, 0.2, 0.05], atol=1e-9)
+    assert fit.arc_coverage == pytest.approx(3.0, abs=1e-9)
+
+
+def test_fit_circle_algebraic_exact_and_noisy():
+    """Kasa's fit is exact on a noise-free circle and within 1 mm on a noisy half can."""
+    assert_allclose(g.fit_circle_algebraic(circle_points((0.3, -0.2), 0.04, 0, 2 * np.pi, 50)),
+                    (0.3, -0.2, 0.04), atol=1e-12)
+    rng = np.random.default_rng(15)
+    cx, cy, r = g.fit_circle_algebraic(circle_points((0.0, 0.0), CAN_R, 0, np.pi, 400, noise=0.0005, rng=rng))
+    assert np.hypot(cx, cy) < 0.001 and r == pytest.approx(CAN_R, abs=0.001)
+
+
+def test_fit_circle_algebraic_huge_coordinates():
+    """Kasa's fit of a circle 1e5 m from the origin is as exact (data centred first)."""
+    assert_allclose(g.fit_circle_algebraic(circle_points((1e5, 1e5), 0.04, 0, np.pi, 50)),
+                    (1e5, 1e5, 0.04), atol=1e-7)
+
+
+@pytest.mark.parametrize("xy, message", [
+    (np.zeros((0, 2)), "at least 3"),
+    (np.full((4, 2), np.nan), "at least 3"),
+    (np.array([[0.0, 0.0]]), "at least 3"),
+    (np.array([[0.0, 0.0], [1.0, 1.0]]), "at least 3"),
+    (np.column_stack([np.linspace(0, 1, 10), np.linspace(0, 2, 10)]), "collinear"),
+    (np.tile([0.1, 0.2], (5, 1)), "coincide"),
+], ids=["empty", "all-nan", "one", "two", "collinear", "coincident"])
+def test_fit_circle_algebraic_degenerate_raises(xy, message):
+    """Too few, collinear or coincident points raise PerceptionError."""
+    with pytest.raises(PerceptionError, match=message):
+        g.fit_circle_algebraic(xy)
+
+
+def test_arc_coverage():
+    """Arc coverage is the span of the points' angles about the centre, across the +-pi seam too."""
+    assert g.arc_coverage(circle_points((0, 0), 1, 0, np.pi, 50), 0, 0) == pytest.approx(np.pi)
+    assert g.arc_coverage(circle_points((0, 0), 1, 2.5, 4.0, 50), 0, 0) == pytest.approx(1.5)
+    assert g.arc_coverage(np.array([[1.0, 0.0]]), 0, 0) == 0.0
