@@ -11,14 +11,6 @@
 namespace example_pcl {
 namespace {
 
-// Hands a std::vector to NumPy without copying: the array owns the vector through a capsule.
-template <typename T>
-py::array_t<T> to_numpy(std::vector<T>&& v) {
-  auto* owned = new std::vector<T>(std::move(v));
-  py::capsule free_when_done(owned, [](void* p) { delete static_cast<std::vector<T>*>(p); });
-  return py::array_t<T>({static_cast<py::ssize_t>(owned->size())}, {sizeof(T)}, owned->data(), free_when_done);
-}
-
 Eigen::Affine3f checked_transform(const py::array& transform) {
   auto t = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(transform);
   if (!t || t.ndim() != 2 || t.shape(0) != 4 || t.shape(1) != 4)
@@ -37,14 +29,23 @@ inline bool finite3(const PointView& v, py::ssize_t i) {
 template <typename Keep>
 py::array_t<std::int64_t> indices_where(const py::array& points, Keep keep) {
   const PointView v = point_view(points);
-  std::vector<std::int64_t> out;
+  py::array_t<std::int64_t> out(v.size());  // uninitialised; shrunk to the kept count below
+  std::int64_t* const first = out.mutable_data();
+  std::int64_t* o = first;
   {
     py::gil_scoped_release nogil;
-    out.reserve(static_cast<size_t>(v.size() / 4));
-    for (py::ssize_t i = 0; i < v.size(); ++i)
-      if (keep(v.flat_coord(i, 2))) out.push_back(i);
+    std::int64_t i = 0;
+    for (py::ssize_t r = 0; r < v.rows; ++r) {
+      const char* z = v.data + r * v.row_stride + 2 * v.coord_stride;
+      for (py::ssize_t c = 0; c < v.cols; ++c, ++i, z += v.col_stride) {
+        // Branch-free: write every index, advance only past the kept ones.
+        *o = i;
+        o += keep(*reinterpret_cast<const float*>(z));
+      }
+    }
   }
-  return to_numpy(std::move(out));
+  out.resize({static_cast<py::ssize_t>(o - first)}, false);
+  return out;
 }
 
 py::array transform_cloud(const py::array& points, const py::array& transform, std::optional<py::array> out) {

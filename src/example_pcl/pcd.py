@@ -70,34 +70,48 @@ def read_pcd(path: str) -> PcdCloud:
                     orientation=tuple(raw["orientation"]), format=raw["format"])
 
 
+def _umask() -> int:
+    """The process's umask, read without changing it (os.umask would race with other threads)."""
+    try:
+        with open("/proc/self/status") as status:
+            for line in status:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError):
+        pass
+    return 0o022
+
+
+def _fsync(path: str) -> None:
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
 @contextlib.contextmanager
-def atomic_path(path: str) -> Iterator[str]:
-    """Yields a temporary name beside ``path``; on success the file is fsynced and renamed to it.
+def atomic_path(path: str, fsync: bool = True) -> Iterator[str]:
+    """Yields a temporary name beside ``path``; on success the file is renamed to it.
 
     A crash, a kill or a full disk leaves at most a hidden temporary file, never a partial file
-    under the final name. On error the temporary file is removed and the error propagates.
+    under the final name. With ``fsync`` (the default) the data and the rename are flushed to
+    the disk first, so a power cut cannot leave an empty file under the final name either. On
+    error the temporary file is removed and the error propagates.
     """
     path = os.fspath(path)
     directory = os.path.dirname(os.path.abspath(path))
     fd, tmp = tempfile.mkstemp(prefix="." + os.path.basename(path) + ".", suffix=".tmp", dir=directory)
     os.close(fd)
     # mkstemp makes the file 0600; give it the mode open() would (0666 less the umask).
-    umask = os.umask(0)
-    os.umask(umask)
-    os.chmod(tmp, 0o666 & ~umask)
+    os.chmod(tmp, 0o666 & ~_umask())
     try:
         yield tmp
-        fd = os.open(tmp, os.O_RDONLY)
-        try:
-            os.fsync(fd)
-        finally:
-            os.close(fd)
+        if fsync:
+            _fsync(tmp)
         os.replace(tmp, path)
-        dir_fd = os.open(directory, os.O_RDONLY)
-        try:
-            os.fsync(dir_fd)
-        finally:
-            os.close(dir_fd)
+        if fsync:
+            _fsync(directory)
     except BaseException:
         with contextlib.suppress(OSError):
             os.unlink(tmp)
@@ -105,13 +119,15 @@ def atomic_path(path: str) -> Iterator[str]:
 
 
 def write_pcd(path: str, points: np.ndarray, fmt: str = "binary_compressed", is_dense: Optional[bool] = None,
-              origin=(0.0, 0.0, 0.0), orientation=(1.0, 0.0, 0.0, 0.0), precision: int = 9) -> None:
+              origin=(0.0, 0.0, 0.0), orientation=(1.0, 0.0, 0.0, 0.0), precision: int = 9,
+              fsync: bool = True) -> None:
     """Writes a structured array as a PCD v0.7 file with PCL's writer, atomically.
 
     points: structured array of shape (H, W) (organized) or (N,); every named field is written.
     fmt: "ascii", "binary" or "binary_compressed". is_dense defaults to "x, y, z all finite".
     origin (metres) and orientation (w, x, y, z) go to the VIEWPOINT line. precision: significant
-    digits of floats in ascii (9 keeps every float32 exact). Raises PerceptionError for bad arguments, OSError when the file
+    digits of floats in ascii (9 keeps every float32 exact). fsync: flush to the disk before the
+    rename (see atomic_path); the file is atomic either way. Raises PerceptionError for bad arguments, OSError when the file
     cannot be written (nothing is left under ``path`` then).
     """
     if fmt not in FORMATS:
@@ -124,7 +140,7 @@ def write_pcd(path: str, points: np.ndarray, fmt: str = "binary_compressed", is_
     if is_dense is None:
         names = points.dtype.names
         is_dense = not all(c in names for c in "xyz") or bool(np.isfinite(xyz_view(data)).all())
-    with atomic_path(path) as tmp:
+    with atomic_path(path, fsync=fsync) as tmp:
         try:
             _native.write_pcd(tmp, data.view(np.uint8).reshape(-1), dtype_to_fields(points.dtype), width, height,
                               points.dtype.itemsize, bool(is_dense), tuple(map(float, origin)),
