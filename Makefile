@@ -35,8 +35,10 @@ test: build
 unit: build
 	@$(IN_DEVEL) $(PYTHON) -m pytest test/unit $(PYTEST_ARGS)
 
+# Open3D (not in Debian) goes into a benchmark-only venv; the figures are written into README.md.
 bench: build
-	@$(IN_DEVEL) $(PYTHON) bench/run_all.py
+	@bench_python=$$(tools/bench_env.sh build/bench-venv) && \
+	  PCD_IO_PCL=$(WS)/devel/lib/example_pcl/bench/pcd_io_pcl $(IN_DEVEL) $$bench_python bench/run_all.py
 
 clean:
 	rm -rf build
