@@ -108,6 +108,10 @@ py::dict read_pcd(const std::string& path) {
     }
   }
   if (rc < 0) throw std::invalid_argument(file_error(path, "PCL's reader rejected the data (code " + std::to_string(rc) + ")"));
+  for (const auto& f : cloud->fields)
+    for (const unsigned char ch : f.name)
+      if (ch < 0x21 || ch > 0x7e)
+        throw std::invalid_argument(file_error(path, "a field name is not printable ASCII"));
   if (cloud->data.size() != static_cast<size_t>(cloud->width) * cloud->height * cloud->point_step)
     throw std::invalid_argument(file_error(path, "data size does not match width x height x point size"));
 

@@ -57,7 +57,8 @@ def read_pcd(path: str) -> PcdCloud:
     try:
         raw = _native.read_pcd(path)
     except ValueError as e:
-        raise PerceptionError(str(e)) from None
+        message = str(e) if path in str(e) else f"cannot read PCD file '{path}': {e}"
+        raise PerceptionError(message) from None
     width, height, point_step = raw["width"], raw["height"], raw["point_step"]
     try:
         # PCL's binary writer names padding bytes "_"; they are not a field.
