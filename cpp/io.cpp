@@ -8,7 +8,13 @@
 #include <cstdio>
 #include <cstring>
 #include <fstream>
+#include <fcntl.h>
 #include <sys/stat.h>
+#include <unistd.h>
+
+#include <initializer_list>
+#include <sstream>
+#include <utility>
 
 #include "common.hpp"
 
@@ -16,6 +22,44 @@ namespace example_pcl {
 namespace {
 
 constexpr int kAscii = 0, kBinary = 1, kBinaryCompressed = 2;
+
+// Writes the pieces to path with plain checked write()s; "" on success, else why not (errno).
+std::string write_file(const std::string& path, std::initializer_list<std::pair<const char*, size_t>> pieces) {
+  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
+  if (fd < 0) return std::strerror(errno);
+  for (const auto& [data, size] : pieces) {
+    size_t done = 0;
+    while (done < size) {
+      const ssize_t n = ::write(fd, data + done, size - done);
+      if (n < 0 && errno == EINTR) continue;
+      if (n <= 0) {
+        const std::string why = n < 0 ? std::strerror(errno) : "short write";
+        ::close(fd);
+        return why;
+      }
+      done += static_cast<size_t>(n);
+    }
+  }
+  if (::close(fd) != 0) return std::strerror(errno);
+  return "";
+}
+
+// PCL's writeASCII does not check its stream: on a full disk it leaves a cut file and reports
+// success. A complete file ends with a newline after every one of its points.
+std::string check_ascii_complete(const std::string& path, std::uint64_t points) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return std::strerror(errno);
+  std::uint64_t newlines = 0, header_lines = 0;
+  std::string line;
+  while (std::getline(in, line)) {
+    ++newlines;
+    if (header_lines == 0 && line.rfind("DATA ", 0) == 0) header_lines = newlines;
+  }
+  if (header_lines == 0 || newlines != header_lines + points)
+    return "the file is incomplete (" + std::to_string(newlines - header_lines) + " of " + std::to_string(points) +
+           " points written; disk full?)";
+  return "";
+}
 
 py::list fields_to_python(const std::vector<pcl::PCLPointField>& fields) {
   py::list out;
@@ -166,23 +210,38 @@ void write_pcd(const std::string& path, const py::buffer& data, const py::list& 
     throw std::invalid_argument("format must be ascii, binary or binary_compressed, got '" + format + "'");
   const Eigen::Vector4f o(origin[0], origin[1], origin[2], 0.f);
   const Eigen::Quaternionf q(orientation[0], orientation[1], orientation[2], orientation[3]);
-  int rc = 0;
+  cloud.data.assign(static_cast<const std::uint8_t*>(buf.ptr), static_cast<const std::uint8_t*>(buf.ptr) + nbytes);
+  std::string error;
   {
-    cloud.data.assign(static_cast<const std::uint8_t*>(buf.ptr), static_cast<const std::uint8_t*>(buf.ptr) + nbytes);
     py::gil_scoped_release nogil;
     pcl::PCDWriter writer;
     try {
-      if (format == "ascii")
-        rc = writer.writeASCII(path, cloud, o, q, precision);
-      else if (format == "binary")
-        rc = writer.writeBinary(path, cloud, o, q);
-      else
-        rc = writer.writeBinaryCompressed(path, cloud, o, q);
+      if (format == "ascii") {
+        if (writer.writeASCII(path, cloud, o, q, precision) < 0)
+          error = "PCL's writeASCII failed";
+        else
+          error = check_ascii_complete(path, static_cast<std::uint64_t>(width) * height);
+      } else if (format == "binary") {
+        // PCL's writeBinary fills an mmap of a file it sized with fallocate, which on some file
+        // systems (tmpfs) does not reserve the space: a full disk then kills the process with
+        // SIGBUS. The same header, then the data with checked write()s.
+        std::string header = writer.generateHeaderBinary(cloud, o, q) + "DATA binary\n";
+        error = write_file(path, {{header.data(), header.size()},
+                                  {reinterpret_cast<const char*>(cloud.data.data()), cloud.data.size()}});
+      } else {
+        std::ostringstream body;  // PCL's compressor, into memory rather than PCL's mmap (as above)
+        if (writer.writeBinaryCompressed(body, cloud, o, q) < 0) {
+          error = "PCL's writeBinaryCompressed failed";
+        } else {
+          const std::string bytes = body.str();
+          error = write_file(path, {{bytes.data(), bytes.size()}});
+        }
+      }
     } catch (const std::exception& e) {
-      throw std::runtime_error("cannot write PCD file '" + path + "': " + e.what());
+      error = e.what();
     }
   }
-  if (rc < 0) throw std::runtime_error("cannot write PCD file '" + path + "' (PCL's writer returned " + std::to_string(rc) + ")");
+  if (!error.empty()) throw std::runtime_error("cannot write PCD file '" + path + "': " + error);
 }
 
 }  // namespace
@@ -199,13 +258,15 @@ Raises ValueError naming the file when it is missing, truncated or malformed.)do
   m.def("write_pcd", &write_pcd, py::arg("path"), py::arg("data"), py::arg("fields"), py::arg("width"),
         py::arg("height"), py::arg("point_step"), py::arg("is_dense"), py::arg("origin"), py::arg("orientation"),
         py::arg("format") = "binary", py::arg("precision") = 9,
-        R"doc(Writes a PCD v0.7 file with pcl::PCDWriter (writeASCII, writeBinary or writeBinaryCompressed).
+        R"doc(Writes a PCD v0.7 file in PCL's format: ascii, binary or binary_compressed.
 
 data: any buffer of width * height * point_step bytes; fields: list of (name, offset, datatype,
 count); origin: (x, y, z) metres; orientation: (w, x, y, z); format: "ascii", "binary" or
 "binary_compressed"; precision: significant digits of floats in ascii.
+Header and body are PCL's (generateHeaderBinary, writeBinaryCompressed into memory, writeASCII);
+the bytes go out with checked write()s, so a full disk is an error, never a crash or a cut file.
 Writes straight to path: callers wanting an atomic file write to a temporary name and rename.
-Raises ValueError for inconsistent arguments, RuntimeError when PCL cannot write.)doc");
+Raises ValueError for inconsistent arguments, RuntimeError when the file cannot be written.)doc");
 }
 
 }  // namespace example_pcl

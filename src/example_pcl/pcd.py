@@ -147,7 +147,8 @@ def write_pcd(path: str, points: np.ndarray, fmt: str = "binary_compressed", is_
                               points.dtype.itemsize, bool(is_dense), tuple(map(float, origin)),
                               tuple(map(float, orientation)), fmt, precision)
         except RuntimeError as e:
-            raise OSError(f"cannot write PCD file '{path}': {e}") from None
+            reason = str(e).split("': ", 1)[-1]  # the extension names the temporary file
+            raise OSError(f"cannot write PCD file '{path}': {reason}") from None
         except ValueError as e:
             raise PerceptionError(str(e)) from None
 

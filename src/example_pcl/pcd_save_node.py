@@ -337,13 +337,16 @@ class SnapshotWriter:
 
     ROS-free: feed it with :meth:`submit` (cheap, never blocks), wait on :attr:`done`. File
     numbers follow the order clouds are taken from the queue. A cloud the writer rejects
-    (PerceptionError) is reported through ``on_reject`` and does not count; an OSError stops the
-    writer (``error`` holds it) since the next write would fail too.
+    (PerceptionError) is reported through ``on_reject`` and does not count. A failed write
+    (OSError: disk full, directory removed) stops a writer that must deliver ``count`` snapshots
+    (``error`` holds it); in continuous mode (count 0) the error may be transient, so it is
+    reported through ``on_write_error``, counted in ``failed`` and the writer carries on.
     """
 
     def __init__(self, config: SaveConfig, topic: str, save: Callable = save_cloud,
                  on_saved: Callable[[str, dict], None] = lambda path, meta: None,
-                 on_reject: Callable[[Exception], None] = lambda error: None):
+                 on_reject: Callable[[Exception], None] = lambda error: None,
+                 on_write_error: Callable[[Exception], None] = lambda error: None):
         self.config = config
         self.topic = topic
         self.drops = DropCounter()
@@ -351,10 +354,12 @@ class SnapshotWriter:
         self.done = threading.Event()
         self.error: Optional[BaseException] = None
         self.saved = 0
+        self.failed = 0
         self.discarded_at_shutdown = 0
         self.first_saved_at: Optional[float] = None
         self.last_saved_at: Optional[float] = None
         self._save, self._on_saved, self._on_reject = save, on_saved, on_reject
+        self._on_write_error = on_write_error
         self._lock = threading.Lock()
         self._assigned = 0
         self._rejected = 0
@@ -405,6 +410,11 @@ class SnapshotWriter:
                 self._on_reject(e)
                 continue
             except OSError as e:
+                if self.config.count == 0:
+                    with self._lock:
+                        self.failed += 1
+                    self._on_write_error(e)
+                    continue
                 with self._lock:
                     self.error = e
                 self.done.set()
@@ -458,7 +468,8 @@ class PcdSaveNode:
         self.last_cloud_at = time.monotonic()
         self.malformed = 0
         self._warned_kinds = set()
-        self.writer = SnapshotWriter(config, self.topic, on_saved=self._on_saved, on_reject=self._on_malformed)
+        self.writer = SnapshotWriter(config, self.topic, on_saved=self._on_saved, on_reject=self._on_malformed,
+                                     on_write_error=self._on_write_error)
         self.writer.start()
         # A 640x480 Kinect cloud is ~10 MB: the buffer must hold a few of them (rospy's advice).
         self.subscriber = rospy.Subscriber(TOPIC, PointCloud2, self._on_cloud, queue_size=2, buff_size=1 << 26)
@@ -481,6 +492,10 @@ class PcdSaveNode:
             self._rospy.logwarn("dropping a malformed cloud on %s: %s (further clouds of this kind are dropped "
                                 "silently and counted)", self.topic, error)
 
+    def _on_write_error(self, error: Exception) -> None:
+        self._rospy.logerr_throttle(5.0, f"writing a snapshot failed ({self.writer.failed} so far), carrying on: "
+                                         f"{error}")
+
     def _on_saved(self, path: str, metadata: dict) -> None:
         if self.config.count == 1:
             self._rospy.loginfo("saved the cloud from %s (frame '%s', stamp %d.%09d, %dx%d) to %s",
@@ -491,7 +506,8 @@ class PcdSaveNode:
 
     def _progress(self) -> str:
         return (f"saved {self.writer.saved} of {self.writer.drops.received} clouds received on {self.topic} "
-                f"({self.writer.rate():.1f} Hz), {self.writer.drops.summary()}, {self.malformed} malformed")
+                f"({self.writer.rate():.1f} Hz), {self.writer.drops.summary()}, {self.malformed} malformed, "
+                f"{self.writer.failed} failed writes")
 
     def request_stop(self) -> None:
         """Asks :meth:`spin` to finish: in-flight writes complete, queued clouds are discarded."""

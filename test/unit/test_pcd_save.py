@@ -300,3 +300,26 @@ def test_snapshot_writer_skips_rejected_clouds_and_stops_on_os_error(tmp_path):
     writer.stop()
     assert len(rejected) == 1 and writer.saved == 1
     assert isinstance(writer.error, OSError) and writer.error.errno == 28
+
+
+def test_continuous_writer_carries_on_after_transient_os_errors(tmp_path):
+    """In continuous mode (count 0) failed writes are counted and reported, and later clouds are still saved."""
+    errors = []
+    calls = []
+
+    def full_then_free(path, msg, fmt, topic, publisher):
+        calls.append(path)
+        if len(calls) in (2, 3):
+            raise OSError(28, "No space left on device")
+        return {}
+
+    config = SaveConfig(file=str(tmp_path / "x.pcd"), format="binary", count=0, queue_size=8, writers=1)
+    writer = SnapshotWriter(config, "/t", save=full_then_free, on_write_error=errors.append).start()
+    for seq in range(1, 6):
+        writer.submit(kinect_cloud(seq=seq))
+    deadline = time.monotonic() + 10
+    while writer.saved + writer.failed < 5 and time.monotonic() < deadline:
+        time.sleep(0.01)
+    writer.stop()
+    assert writer.error is None and not writer.done.is_set()
+    assert (writer.saved, writer.failed, len(errors)) == (3, 2, 2)

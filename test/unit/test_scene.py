@@ -351,4 +351,4 @@ def test_script_is_executable_and_calls_main():
     script = REPO / "scripts" / "make_scene"
     assert os.access(script, os.X_OK)
     text = script.read_text()
-    assert text.startswith("#!/usr/bin/env python3\n") and "example_pcl.scene.main()" in text
+    assert text.startswith("#!/usr/bin/python3\n") and "example_pcl.scene.main()" in text
