@@ -259,3 +259,21 @@ def create_cloud(header, fields, points: np.ndarray):
         for i, name in enumerate(dtype.names):
             out[name] = points[:, i]
     return array_to_cloud(out, header=header)
+
+
+def validate_cloud(cloud, max_points: Optional[int] = None) -> np.ndarray:
+    """The structured view of a PointCloud2 that a node can use, or PerceptionError saying why not.
+
+    Beyond :func:`cloud_to_array`'s checks (endianness, field layout, data length): the cloud
+    must have points, float x, y, z fields, at most ``max_points`` points (a guard against a
+    runaway publisher), and at least one finite point.
+    """
+    points = cloud_to_array(cloud)
+    if points.size == 0:
+        raise PerceptionError("empty cloud (width x height is 0)")
+    if max_points and points.size > max_points:
+        raise PerceptionError(f"cloud of {points.size} points, more than ~max_points {max_points}")
+    xyz = xyz_view(points)
+    if not np.isfinite(xyz).any():
+        raise PerceptionError("cloud has no finite point (all NaN or inf)")
+    return points

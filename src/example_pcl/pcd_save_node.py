@@ -17,6 +17,7 @@ Private params (logged at start-up with the resolved topic):
   discarded and counted as dropped.
 - ``~writers`` (default 2): writer threads (PCL's writer releases the GIL, so they run in parallel).
 - ``~report_period`` (s, default 5): how often continuous mode logs its rate and drops.
+- ``~max_points`` (default 5000000, 0 = no limit): larger clouds are dropped with a warning.
 
 Every field of the message is kept (padding bytes are not fields and are left out), with the
 organized width x height, is_dense and NaN points. PCD has no place for a frame id, so each PCD
@@ -45,7 +46,8 @@ from typing import Callable, Deque, Dict, Optional, Tuple
 import numpy as np
 from numpy.lib import recfunctions
 
-from example_pcl.conversions import cloud_to_array, dtype_to_fields
+from example_pcl import conversions
+from example_pcl.conversions import dtype_to_fields
 from example_pcl.errors import PerceptionError
 from example_pcl.pcd import FORMATS, atomic_path, write_pcd
 
@@ -73,6 +75,7 @@ class SaveConfig:
     queue_size: int = 4
     writers: int = 2
     report_period: float = 5.0
+    max_points: int = 5_000_000
 
     @classmethod
     def from_params(cls, get_param: Callable[[str, object], object]) -> "SaveConfig":
@@ -88,7 +91,7 @@ class SaveConfig:
                          format=str(raw["format"]).strip().lower(),
                          count=int(raw["count"]), timeout=float(raw["timeout"]),
                          queue_size=int(raw["queue_size"]), writers=int(raw["writers"]),
-                         report_period=float(raw["report_period"]))
+                         report_period=float(raw["report_period"]), max_points=int(raw["max_points"]))
         except (TypeError, ValueError) as e:
             raise PerceptionError(f"bad parameter value: {e}") from None
         config.validate()
@@ -106,6 +109,8 @@ class SaveConfig:
             raise PerceptionError(f"~queue_size must be >= 1, got {self.queue_size}")
         if self.writers < 1:
             raise PerceptionError(f"~writers must be >= 1, got {self.writers}")
+        if self.max_points < 0:
+            raise PerceptionError(f"~max_points must be >= 0 (0 = no limit), got {self.max_points}")
         if not self.report_period > 0:
             raise PerceptionError(f"~report_period must be > 0 s, got {self.report_period}")
 
@@ -153,18 +158,13 @@ def check_destination(path: str) -> None:
                               f"({e.strerror})") from None
 
 
-def validate_cloud(msg) -> np.ndarray:
+def validate_cloud(msg, max_points: int = 0) -> np.ndarray:
     """The points of a PointCloud2 as a structured array view; PerceptionError if it cannot be saved.
 
-    Beyond :func:`example_pcl.conversions.cloud_to_array`'s checks (endianness, field layout, data
-    length), a cloud without points or without named fields is rejected.
+    :func:`example_pcl.conversions.validate_cloud`'s checks: field layout, data length, no
+    points, no x/y/z, more than ``max_points`` (0 = no limit), no finite point.
     """
-    points = cloud_to_array(msg)
-    if points.size == 0:
-        raise PerceptionError("empty cloud (width x height is 0)")
-    if not points.dtype.names:
-        raise PerceptionError("cloud has no fields")
-    return points
+    return conversions.validate_cloud(msg, max_points=max_points or None)
 
 
 def warning_kind(error: Exception) -> str:
@@ -219,7 +219,7 @@ def write_sidecar(path: str, metadata: dict) -> None:
             f.write("\n")
 
 
-def save_cloud(path: str, msg, fmt: str, topic: str, publisher: str = "") -> dict:
+def save_cloud(path: str, msg, fmt: str, topic: str, publisher: str = "", max_points: int = 0) -> dict:
     """Writes a PointCloud2 to a PCD file and its ``<file>.json`` sidecar, both atomically.
 
     Every named field, the organized shape, is_dense and NaN points are kept; ascii uses 9
@@ -227,7 +227,7 @@ def save_cloud(path: str, msg, fmt: str, topic: str, publisher: str = "") -> dic
     Raises PerceptionError for a cloud that cannot be saved, OSError when the disk or directory
     fails (nothing is then left under either final name).
     """
-    points = packed_points(validate_cloud(msg))
+    points = packed_points(validate_cloud(msg, max_points))
     write_pcd(path, points, fmt=fmt, is_dense=bool(msg.is_dense), precision=9)
     metadata = cloud_metadata(msg, topic, path, fmt, publisher)
     write_sidecar(sidecar_path(path), metadata)
@@ -476,7 +476,7 @@ class PcdSaveNode:
 
     def _on_cloud(self, msg) -> None:
         try:
-            validate_cloud(msg)
+            validate_cloud(msg, self.config.max_points)
         except PerceptionError as e:
             self._on_malformed(e)
             return
