@@ -25,6 +25,7 @@ def main():
     write_readme_section("pcd_save", run("pcd_save_rate.py"))
     if (HERE / "bench_find_can.py").exists():
         run("bench_find_can.py")
+    run("bench_auto.py")  # writes its own README section (auto)
 
 
 if __name__ == "__main__":

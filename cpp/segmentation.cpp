@@ -1,13 +1,20 @@
-// Model fitting by RANSAC through PCL's SACSegmentation.
+// Segmentation: model fitting by RANSAC through PCL's SACSegmentation, and clustering (PCL's
+// Euclidean cluster extraction, and connected components on the organized grid).
 #include <pcl/ModelCoefficients.h>
+#include <pcl/search/kdtree.h>
+#include <pcl/segmentation/extract_clusters.h>
 #include <pcl/point_cloud.h>
 #include <pcl/point_types.h>
 #include <pcl/sample_consensus/method_types.h>
 #include <pcl/sample_consensus/model_types.h>
 #include <pcl/segmentation/sac_segmentation.h>
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
+#include <numeric>
 #include <optional>
+#include <vector>
 
 #include "common.hpp"
 
@@ -62,6 +69,151 @@ py::tuple segment_plane(const py::array& points, double distance_threshold, int 
   return py::make_tuple(plane, idx);
 }
 
+
+// Clusters as a Python list of int64 index arrays, largest first (ties: lowest first index).
+py::list cluster_list(std::vector<std::vector<std::int64_t>>& clusters) {
+  std::stable_sort(clusters.begin(), clusters.end(),
+                   [](const auto& a, const auto& b) { return a.size() > b.size(); });
+  py::list out;
+  for (const auto& c : clusters) {
+    py::array_t<std::int64_t> a(static_cast<py::ssize_t>(c.size()));
+    std::copy(c.begin(), c.end(), a.mutable_data());
+    out.append(a);
+  }
+  return out;
+}
+
+void check_cluster_sizes(py::ssize_t min_points, py::ssize_t max_points) {
+  if (min_points < 1) throw std::invalid_argument("min_points must be >= 1");
+  if (max_points < min_points) throw std::invalid_argument("max_points must be >= min_points");
+}
+
+py::list euclidean_clusters(const py::array& points, double tolerance, py::ssize_t min_points,
+                            py::ssize_t max_points, std::optional<py::array> indices) {
+  const PointView v = point_view(points);
+  if (!(tolerance > 0)) throw std::invalid_argument("tolerance must be > 0 (metres)");
+  check_cluster_sizes(min_points, max_points);
+  std::optional<py::array_t<std::int64_t>> idx;
+  if (indices) idx = checked_indices(*indices, v.size());
+  std::vector<std::vector<std::int64_t>> clusters;
+  {
+    py::gil_scoped_release nogil;
+    auto cloud = std::make_shared<pcl::PointCloud<pcl::PointXYZ>>();
+    std::vector<std::int64_t> original;  // cloud index -> index into the flattened input
+    const py::ssize_t count = idx ? idx->size() : v.size();
+    cloud->reserve(static_cast<size_t>(count));
+    original.reserve(static_cast<size_t>(count));
+    for (py::ssize_t j = 0; j < count; ++j) {
+      const py::ssize_t i = idx ? idx->data()[j] : j;
+      const float x = v.flat_coord(i, 0), y = v.flat_coord(i, 1), z = v.flat_coord(i, 2);
+      if (!(std::isfinite(x) && std::isfinite(y) && std::isfinite(z))) continue;
+      cloud->push_back(pcl::PointXYZ(x, y, z));
+      original.push_back(i);
+    }
+    if (!cloud->empty()) {
+      auto tree = std::make_shared<pcl::search::KdTree<pcl::PointXYZ>>();
+      tree->setInputCloud(cloud);
+      std::vector<pcl::PointIndices> found;
+      pcl::EuclideanClusterExtraction<pcl::PointXYZ> ec;
+      ec.setClusterTolerance(tolerance);
+      ec.setMinClusterSize(static_cast<pcl::uindex_t>(std::min<py::ssize_t>(min_points, std::numeric_limits<int>::max())));
+      ec.setMaxClusterSize(static_cast<pcl::uindex_t>(std::min<py::ssize_t>(max_points, std::numeric_limits<int>::max())));
+      ec.setSearchMethod(tree);
+      ec.setInputCloud(cloud);
+      ec.extract(found);
+      for (const auto& f : found) {
+        std::vector<std::int64_t> c;
+        c.reserve(f.indices.size());
+        for (const auto k : f.indices) c.push_back(original[static_cast<size_t>(k)]);
+        std::sort(c.begin(), c.end());
+        clusters.push_back(std::move(c));
+      }
+    }
+  }
+  return cluster_list(clusters);
+}
+
+// Union-find with path halving over the pixels of the grid.
+struct DisjointSets {
+  std::vector<std::int32_t> parent;
+  explicit DisjointSets(size_t n) : parent(n) { std::iota(parent.begin(), parent.end(), 0); }
+  std::int32_t find(std::int32_t a) {
+    while (parent[a] != a) a = parent[a] = parent[parent[a]];
+    return a;
+  }
+  void unite(std::int32_t a, std::int32_t b) {
+    a = find(a);
+    b = find(b);
+    if (a != b) parent[std::max(a, b)] = std::min(a, b);
+  }
+};
+
+py::list organized_clusters(const py::array& points, double max_distance, py::ssize_t min_points,
+                            py::ssize_t max_points, double z_min, double z_max, bool diagonal) {
+  const PointView v = point_view(points);
+  if (points.ndim() != 3)
+    throw std::invalid_argument("points must be an organized float32 array of shape (H, W, 3), got " +
+                                describe(points));
+  if (!(max_distance > 0)) throw std::invalid_argument("max_distance must be > 0 (metres)");
+  check_cluster_sizes(min_points, max_points);
+  if (v.size() >= std::numeric_limits<std::int32_t>::max())
+    throw std::invalid_argument("points has too many pixels for organized_clusters, got " + describe(points));
+  std::vector<std::vector<std::int64_t>> clusters;
+  {
+    py::gil_scoped_release nogil;
+    const py::ssize_t H = v.rows, W = v.cols;
+    const float d2 = static_cast<float>(max_distance * max_distance);
+    std::vector<std::uint8_t> in(static_cast<size_t>(H * W), 0);
+    for (py::ssize_t r = 0; r < H; ++r)
+      for (py::ssize_t c = 0; c < W; ++c) {
+        const float x = v.coord(r, c, 0), y = v.coord(r, c, 1), z = v.coord(r, c, 2);
+        in[static_cast<size_t>(r * W + c)] =
+            std::isfinite(x) && std::isfinite(y) && std::isfinite(z) && z >= z_min && z <= z_max;
+      }
+    DisjointSets sets(static_cast<size_t>(H * W));
+    auto near = [&](py::ssize_t r0, py::ssize_t c0, py::ssize_t r1, py::ssize_t c1) {
+      const float dx = v.coord(r0, c0, 0) - v.coord(r1, c1, 0), dy = v.coord(r0, c0, 1) - v.coord(r1, c1, 1),
+                  dz = v.coord(r0, c0, 2) - v.coord(r1, c1, 2);
+      return dx * dx + dy * dy + dz * dz <= d2;
+    };
+    // Each pixel is joined to its already-visited neighbours: left, and the row above (up-left,
+    // up, up-right with `diagonal`).
+    for (py::ssize_t r = 0; r < H; ++r)
+      for (py::ssize_t c = 0; c < W; ++c) {
+        const py::ssize_t i = r * W + c;
+        if (!in[static_cast<size_t>(i)]) continue;
+        auto join = [&](py::ssize_t r1, py::ssize_t c1) {
+          if (r1 < 0 || c1 < 0 || c1 >= W) return;
+          const py::ssize_t j = r1 * W + c1;
+          if (in[static_cast<size_t>(j)] && near(r, c, r1, c1))
+            sets.unite(static_cast<std::int32_t>(i), static_cast<std::int32_t>(j));
+        };
+        join(r, c - 1);
+        join(r - 1, c);
+        if (diagonal) {
+          join(r - 1, c - 1);
+          join(r - 1, c + 1);
+        }
+      }
+    std::vector<std::int32_t> size(static_cast<size_t>(H * W), 0);
+    for (py::ssize_t i = 0; i < H * W; ++i)
+      if (in[static_cast<size_t>(i)]) ++size[static_cast<size_t>(sets.find(static_cast<std::int32_t>(i)))];
+    std::vector<std::int32_t> slot(static_cast<size_t>(H * W), -1);  // root -> cluster number
+    for (py::ssize_t i = 0; i < H * W; ++i) {
+      if (!in[static_cast<size_t>(i)]) continue;
+      const auto root = static_cast<size_t>(sets.find(static_cast<std::int32_t>(i)));
+      if (size[root] < min_points || size[root] > max_points) continue;
+      if (slot[root] < 0) {
+        slot[root] = static_cast<std::int32_t>(clusters.size());
+        clusters.emplace_back();
+        clusters.back().reserve(static_cast<size_t>(size[root]));
+      }
+      clusters[static_cast<size_t>(slot[root])].push_back(i);
+    }
+  }
+  return cluster_list(clusters);
+}
+
 }  // namespace
 
 void bind_segmentation(py::module_& m) {
@@ -76,6 +228,32 @@ be perpendicular to it within eps_angle (radians) (SACMODEL_PERPENDICULAR_PLANE)
 Returns (plane, inliers): float32 (4,) [nx, ny, nz, d] with n . p + d = 0, and int64 indices of
 the inliers into the flattened input.
 Raises ValueError when no plane is found.)doc");
+
+  m.def("euclidean_clusters", &euclidean_clusters, py::arg("points"), py::arg("tolerance"),
+        py::arg("min_points") = 1, py::arg("max_points") = std::numeric_limits<std::int32_t>::max(),
+        py::arg("indices") = py::none(),
+        R"doc(Clusters by pcl::EuclideanClusterExtraction (a k-d tree; points closer than tolerance join).
+
+points: float32 array of shape (N, 3) or (H, W, 3), any strides (metres), NaN points skipped;
+indices: optional int array of the points to cluster (into the flattened input); tolerance:
+the largest gap within a cluster (metres); clusters with fewer than min_points or more than
+max_points points are dropped.
+Returns a list of int64 arrays of indices into the flattened input, one per cluster, largest
+first, each sorted ascending.)doc");
+  m.def("organized_clusters", &organized_clusters, py::arg("points"), py::arg("max_distance"),
+        py::arg("min_points") = 1, py::arg("max_points") = std::numeric_limits<std::int32_t>::max(),
+        py::arg("z_min") = -std::numeric_limits<double>::infinity(),
+        py::arg("z_max") = std::numeric_limits<double>::infinity(), py::arg("diagonal") = true,
+        R"doc(Connected components on the organized grid: neighbouring pixels join when their points are
+within max_distance (metres, 3-D) of each other.
+
+points: float32 array of shape (H, W, 3), any strides (metres); only finite points with
+z_min <= z <= z_max take part (e.g. a cloud in a plane frame, banded above the table).
+Neighbours are the 4 side pixels, and the 4 diagonal ones with `diagonal`. Components with
+fewer than min_points or more than max_points points are dropped. One pass over the grid with
+union-find: linear in H * W, no k-d tree.
+Returns a list of int64 arrays of indices into the flattened (H * W) grid, one per cluster,
+largest first, each sorted ascending.)doc");
 }
 
 }  // namespace example_pcl

@@ -225,3 +225,71 @@ def test_segment_plane_finds_dominant_plane():
     assert (inliers < 2000).mean() > 0.95 and len(inliers) > 1900
     plane2, _ = _native.segment_plane(pts, 0.01, 200, axis=(0, 0, 1), eps_angle=0.1)
     assert_allclose(abs(plane2[2]), 1, atol=1e-3)
+
+
+# --- clustering -----------------------------------------------------------------------------------
+
+
+def blobs_grid():
+    """A 40x60 organized grid (m): a flat floor at z = 0 with two raised blocks (z = 0.1) and a
+    NaN hole; the blocks are 5 columns apart (0.05 m), far more than the 0.01 m pixel pitch."""
+    v, u = np.mgrid[0:40, 0:60].astype(np.float32)
+    xyz = np.stack([u * 0.01, v * 0.01, np.zeros_like(u)], axis=-1)
+    xyz[5:15, 5:20, 2] = 0.1
+    xyz[5:25, 25:35, 2] = 0.1
+    xyz[30, 30] = np.nan
+    return xyz
+
+
+def test_organized_clusters_split_at_gaps_largest_first():
+    """Connected components of the raised points: two clusters, largest first, flattened indices."""
+    xyz = blobs_grid()
+    clusters = _native.organized_clusters(xyz, 0.015, z_min=0.05)
+    assert [len(c) for c in clusters] == [200, 150]
+    rows, cols = np.divmod(clusters[1], 60)
+    assert rows.min() == 5 and rows.max() == 14 and cols.min() == 5 and cols.max() == 19
+    assert all((np.diff(c) > 0).all() for c in clusters)
+
+
+def test_organized_clusters_distance_and_size_limits():
+    """A 3-D jump larger than max_distance separates neighbours; min/max_points drop clusters."""
+    xyz = blobs_grid()
+    xyz[5:15, 12:20, 2] = 0.2  # a 0.1 m step inside the first block
+    assert sorted(len(c) for c in _native.organized_clusters(xyz, 0.015, z_min=0.05)) == [70, 80, 200]
+    assert sorted(len(c) for c in _native.organized_clusters(xyz, 0.2, z_min=0.05)) == [150, 200]
+    assert [len(c) for c in _native.organized_clusters(xyz, 0.015, min_points=75, max_points=100,
+                                                       z_min=0.05)] == [80]
+
+
+def test_organized_matches_euclidean_clusters():
+    """On an organized grid, connected components and PCL's Euclidean clusters agree."""
+    xyz = blobs_grid()
+    idx = np.flatnonzero(xyz[..., 2].ravel() > 0.05)
+    organized = _native.organized_clusters(xyz, 0.015, z_min=0.05)
+    euclidean = _native.euclidean_clusters(xyz, 0.015, indices=idx)
+    assert len(organized) == len(euclidean) == 2
+    for a, b in zip(organized, euclidean):
+        assert_array_equal(a, b)
+
+
+def test_euclidean_clusters_skip_nan_and_limit_sizes():
+    """euclidean_clusters ignores NaN points and drops clusters outside [min_points, max_points]."""
+    pts = np.r_[np.zeros((5, 3)), np.full((3, 3), np.nan), np.ones((20, 3))].astype(np.float32)
+    clusters = _native.euclidean_clusters(pts, 0.01)
+    assert [len(c) for c in clusters] == [20, 5]
+    assert_array_equal(clusters[1], np.arange(5))
+    assert [len(c) for c in _native.euclidean_clusters(pts, 0.01, min_points=6)] == [20]
+
+
+@pytest.mark.parametrize("call, error", [
+    (lambda: _native.organized_clusters(np.zeros((10, 3), np.float32), 0.01), ValueError),
+    (lambda: _native.organized_clusters(np.zeros((4, 4, 3)), 0.01), TypeError),
+    (lambda: _native.organized_clusters(np.zeros((4, 4, 3), np.float32), 0.0), ValueError),
+    (lambda: _native.organized_clusters(np.zeros((4, 4, 3), np.float32), 0.01, min_points=0), ValueError),
+    (lambda: _native.euclidean_clusters(np.zeros((4, 3), np.float32), -1.0), ValueError),
+    (lambda: _native.euclidean_clusters(np.zeros((4, 3), np.float32), 0.1, indices=np.array([7])), ValueError),
+])
+def test_cluster_arguments_checked(call, error):
+    """Bad shapes, dtypes, distances, sizes and indices raise at the boundary."""
+    with pytest.raises(error):
+        call()

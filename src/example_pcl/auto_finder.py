@@ -1,0 +1,486 @@
+"""Fully automatic can finding (issue 5): every upright cylinder standing on the support plane.
+
+Pure functions on NumPy arrays; knows nothing of ROS. ``find_cans(xyz)`` takes an organized
+Kinect cloud (float32 (H, W, 3), metres, sensor optical frame, NaN holes) and, with no operator
+selection at all:
+
+1. **Table.** RANSAC (PCL's SACSegmentation, ``_native.segment_plane``) on the grid subsampled
+   every ``ransac_step`` pixels finds up to ``max_planes`` large planes, one after the other. The
+   support plane is the one with the most points *standing on it*: points of no plane lying
+   between ``min_height`` (plus 3.5 times the depth noise at their range) and ``max_height``
+   above it, on the sensor's side. A floor seen beyond the table has nothing within
+   ``max_height`` above it (the table top is higher), so it is not taken even when it is the
+   larger plane; a wall has only what is near it. When no plane holds ``min_support`` points,
+   the largest is the table (and nothing stands on it). With ``up`` given
+   (sensor frame), only planes whose normal is within ``max_tilt`` of it are searched. The plane
+   is then refined by least squares on the points within ``refine_band`` of it (every
+   ``refine_step``-th pixel) and a plane frame put on it (z up, toward the sensor).
+2. **Objects.** The whole cloud is moved into the plane frame; the points between ``min_height``
+   and ``max_height`` above the table are clustered by connected components on the organized grid
+   (``_native.organized_clusters``: neighbouring pixels join when within ``cluster_distance``),
+   or by PCL's Euclidean cluster extraction for an unorganized (N, 3) cloud.
+3. **Cylinders.** For each cluster: its height is its top (the 99th percentile of the points'
+   heights); its side points (from ``fit_bottom`` above the table to ``top_margin`` below the top,
+   both widened by 3 sigma of depth noise) seen from above are fitted with a circle, first
+   algebraically (Kasa), then by Gauss-Newton /
+   Levenberg-Marquardt on the radial error with the radius free (geometry.fit_cylinder).
+
+**Rejection criterion** (a cluster is a can only if all hold; the first failing one is reported):
+
+* it stands on the table: its lowest point is within ``min_height`` + ``max_base_gap`` of it;
+* it is at least ``min_can_height`` tall and has ``min_fit_points`` side points;
+* its side is no wider than a can of ``max_radius`` (plus r_eps on each side; checked first, so
+  large objects cost no fit);
+* radius within [``min_radius``, ``max_radius``];
+* the circle explains the side: at least ``min_inlier_fraction`` of the side points lie within
+  r_eps of it, where r_eps = max(``r_eps``, ``r_eps_sigmas`` x sigma) and sigma =
+  ``noise_coefficient`` x range^2 is the Kinect's depth noise at the cluster's range;
+* the residual is noise, not shape: the rms radial residual is at most
+  max(``max_rms``, ``max_rms_sigmas`` x sigma), *and* the shape error - the rms over
+  ``shape_bins`` consecutive arcs of the side of each arc's mean residual, where noise averages
+  out - is at most ``max_shape_error``. A box's flat faces bend away from any circle by
+  millimetres, systematically, which this catches at every range;
+* the side is seen around at least ``min_arc`` radians of the axis (a can's visible half is
+  about pi; a single flat face is much less).
+
+Everything is in metres and radians; "sensor frame" is the frame of the input cloud.
+"""
+import argparse
+import json
+import sys
+import time
+from dataclasses import dataclass, field
+from typing import List, Optional, Tuple
+
+import numpy as np
+
+from example_pcl import _native
+from example_pcl import geometry as g
+from example_pcl.errors import PerceptionError
+
+
+@dataclass(frozen=True)
+class AutoConfig:
+    """Parameters of find_cans. Lengths in metres, angles in radians.
+
+    Table: ransac_step (px): RANSAC sees every ransac_step-th pixel in each direction;
+    plane_distance: RANSAC inlier distance; max_planes: planes searched at most;
+    min_plane_fraction: a plane needs this fraction of the subsampled finite points;
+    up: optional (x, y, z) "up" in the sensor frame, then only planes whose normal is within
+    max_tilt of it count; refine_step (px), refine_band: the least-squares refinement uses every
+    refine_step-th pixel within refine_band of the RANSAC plane; support_step (px),
+    min_support: a plane holds objects when at least min_support of every support_step-th
+    pixel stand on it.
+
+    Objects: min_height, max_height: the band above the table that objects are taken from;
+    cluster_distance: neighbouring points closer than this join a cluster; min_cluster_points:
+    smaller clusters are noise and ignored; clustering: "auto" (organized grid when the cloud is
+    (H, W, 3), else Euclidean), "organized" or "euclidean".
+
+    Fit: fit_bottom: side points start this high above the table (below it, table noise);
+    top_margin: and end this far below the cluster's top (above it, the lid); max_fit_points:
+    larger sides are subsampled evenly for the fit; fit_iterations, fit_tolerance (m): the
+    Levenberg-Marquardt fit stops after so many iterations or a shorter step;
+    noise_coefficient (1/m): the depth noise sigma = noise_coefficient * range^2 (Kinect,
+    Khoshelham & Elberink 2012), which widens fit_bottom and top_margin by 3 sigma; r_eps,
+    r_eps_sigmas: a side point is an inlier within max(r_eps, r_eps_sigmas * sigma) of the circle.
+
+    Criterion (see the module docstring): max_base_gap, min_can_height, min_fit_points,
+    min_radius, max_radius, min_inlier_fraction, max_rms, max_rms_sigmas, shape_bins,
+    max_shape_error, min_arc.
+    """
+
+    ransac_step: int = 8
+    plane_distance: float = 0.015
+    max_planes: int = 3
+    min_plane_fraction: float = 0.05
+    up: Optional[Tuple[float, float, float]] = None
+    max_tilt: float = 0.35
+    refine_step: int = 3
+    refine_band: float = 0.01
+    support_step: int = 4
+    min_support: int = 10
+
+    min_height: float = 0.015
+    max_height: float = 0.4
+    cluster_distance: float = 0.02
+    min_cluster_points: int = 50
+    clustering: str = "auto"
+
+    fit_bottom: float = 0.01
+    top_margin: float = 0.01
+    max_fit_points: int = 600
+    fit_tolerance: float = 1e-5
+    fit_iterations: int = 20
+    noise_coefficient: float = 1.425e-3
+    r_eps: float = 0.006
+    r_eps_sigmas: float = 3.0
+
+    max_base_gap: float = 0.03
+    min_can_height: float = 0.04
+    min_fit_points: int = 30
+    min_radius: float = 0.015
+    max_radius: float = 0.08
+    min_inlier_fraction: float = 0.8
+    max_rms: float = 0.003
+    max_rms_sigmas: float = 1.0
+    shape_bins: int = 8
+    max_shape_error: float = 0.001
+    min_arc: float = 1.8
+
+    def validate(self):
+        """Raises PerceptionError naming the first value that makes no sense."""
+        positive = ("ransac_step", "plane_distance", "max_planes", "refine_step", "refine_band", "max_height",
+                    "cluster_distance", "min_cluster_points", "max_fit_points", "r_eps", "min_radius",
+                    "max_radius", "shape_bins", "min_fit_points")
+        for name in positive:
+            if not getattr(self, name) > 0:
+                raise PerceptionError(f"AutoConfig.{name} must be > 0, got {getattr(self, name)}")
+        if not 0 <= self.min_height < self.max_height:
+            raise PerceptionError(f"AutoConfig needs 0 <= min_height < max_height (m), got {self.min_height}, "
+                                  f"{self.max_height}")
+        if not self.min_radius < self.max_radius:
+            raise PerceptionError(f"AutoConfig needs min_radius < max_radius (m), got {self.min_radius}, "
+                                  f"{self.max_radius}")
+        if self.clustering not in ("auto", "organized", "euclidean"):
+            raise PerceptionError("AutoConfig.clustering must be auto, organized or euclidean, "
+                                  f"got {self.clustering!r}")
+        if self.up is not None:
+            g._unit(self.up, "AutoConfig.up")
+
+
+@dataclass(frozen=True, eq=False)
+class CanDetection:
+    """One can found: base_center (float64 (3,), sensor frame, m): the centre of its base on the
+    table; axis (unit (3,), sensor frame): up the can, the table normal; radius, height (m);
+    rms_error (m): rms radial residual of the side inliers; shape_error (m): see the criterion;
+    arc_coverage (rad): angular span of the side seen; n_points: points in its cluster;
+    n_fit_points: side points in the final fit; T_sensor_from_can (4x4 float64): origin at
+    base_center, z along axis, x as the plane frame's; indices: int64 of its cluster's points
+    into the flattened input cloud."""
+
+    base_center: np.ndarray
+    axis: np.ndarray
+    radius: float
+    height: float
+    rms_error: float
+    shape_error: float
+    arc_coverage: float
+    n_points: int
+    n_fit_points: int
+    T_sensor_from_can: np.ndarray
+    indices: np.ndarray = field(repr=False)
+
+    def to_dict(self):
+        """JSON-able dict of everything but the indices."""
+        return {"base_center": self.base_center.tolist(), "axis": self.axis.tolist(), "radius": self.radius,
+                "height": self.height, "rms_error": self.rms_error, "shape_error": self.shape_error,
+                "arc_coverage": self.arc_coverage, "n_points": self.n_points, "n_fit_points": self.n_fit_points,
+                "T_sensor_from_can": self.T_sensor_from_can.tolist()}
+
+
+@dataclass(frozen=True, eq=False)
+class RejectedCluster:
+    """A cluster on the table that is not a can: centroid (float64 (3,), sensor frame, m),
+    n_points, reason (the first criterion it failed, with the figures), and the circle fitted
+    (radius, m; None when no fit was made)."""
+
+    centroid: np.ndarray
+    n_points: int
+    reason: str
+    radius: Optional[float] = None
+
+    def to_dict(self):
+        return {"centroid": self.centroid.tolist(), "n_points": self.n_points, "reason": self.reason,
+                "radius": self.radius}
+
+
+@dataclass(frozen=True, eq=False)
+class AutoResult:
+    """What find_cans found: the table (Plane, sensor frame) and T_sensor_from_plane (4x4); cans
+    best first (most side points in the fit first: the best-measured); rejected clusters;
+    candidate_planes: (Plane, points standing on it) per RANSAC plane considered (subsampled
+    counts); timings: seconds per stage (table, transform, clusters, fits, total)."""
+
+    table: g.Plane
+    T_sensor_from_plane: np.ndarray
+    cans: List[CanDetection]
+    rejected: List[RejectedCluster]
+    candidate_planes: list
+    timings: dict
+
+    @property
+    def message(self):
+        """One line for a log: how many cans, or why none."""
+        if self.cans:
+            radii = ", ".join(f"{1e3 * c.radius:.1f}" for c in self.cans)
+            return f"found {len(self.cans)} can(s), radii {radii} mm"
+        if self.rejected:
+            return f"no can found: {len(self.rejected)} object(s) on the support plane, none a can"
+        return "no can found: nothing stands on the support plane"
+
+    def to_dict(self):
+        """JSON-able summary."""
+        return {"message": self.message,
+                "table": {"normal": self.table.normal.tolist(), "d": self.table.d,
+                          "n_points": self.table.n_points,
+                          "T_sensor_from_plane": self.T_sensor_from_plane.tolist()},
+                "cans": [c.to_dict() for c in self.cans],
+                "rejected": [r.to_dict() for r in self.rejected],
+                "timings_ms": {k: round(1e3 * v, 3) for k, v in self.timings.items()}}
+
+
+# --- the table ------------------------------------------------------------------------------------
+
+
+def _finite_rows(points):
+    """The finite points of an (N, 3) array: float32 (M, 3) contiguous."""
+    return np.ascontiguousarray(points[np.isfinite(points).all(axis=1)], dtype=np.float32)
+
+
+def find_support_plane(xyz, viewpoint=(0.0, 0.0, 0.0), config=AutoConfig()):
+    """The plane the objects stand on (step 1 of the module docstring).
+
+    xyz: float32 (H, W, 3) or (N, 3), sensor frame (m), NaN allowed; viewpoint: the sensor
+    (sensor frame, m); normals are turned toward it. Returns (Plane, T_sensor_from_plane,
+    candidates): candidates are (Plane, support) for each RANSAC plane, support being the number
+    of subsampled points standing on it. Raises PerceptionError when the cloud has too few finite
+    points or no plane is large enough.
+    """
+    viewpoint = g._vector3(viewpoint, "viewpoint")
+    pts = g._float32_points(xyz)
+    step = int(config.ransac_step)
+    sub = pts[::step, ::step] if pts.ndim == 3 else pts[::step * step]
+    sub = _finite_rows(sub.reshape(-1, 3))
+    if len(sub) < 3:
+        raise PerceptionError(f"the cloud has {len(sub)} finite point(s) at a {step}-pixel step; no table "
+                              "can be found (is the sensor covered or the cloud empty?)")
+    min_inliers = max(int(config.min_plane_fraction * len(sub)), 3)
+    axis = None if config.up is None else tuple(float(v) for v in g._unit(config.up, "up"))
+    planes, remaining = [], sub
+    for _ in range(int(config.max_planes)):
+        if len(remaining) < min_inliers:
+            break
+        try:
+            coefficients, inliers = _native.segment_plane(remaining, config.plane_distance, axis=axis,
+                                                          eps_angle=config.max_tilt)
+        except ValueError:
+            break
+        if len(inliers) < min_inliers:
+            break
+        normal = coefficients[:3].astype(float)
+        normal /= np.linalg.norm(normal)
+        centroid = remaining[inliers].mean(axis=0, dtype=float)
+        planes.append(g._oriented_plane(normal, centroid, 0.0, len(inliers), viewpoint))
+        mask = np.ones(len(remaining), bool)
+        mask[inliers] = False
+        remaining = remaining[mask]
+    if not planes:
+        what = "" if axis is None else f" within {config.max_tilt} rad of up = {axis}"
+        raise PerceptionError(f"no plane{what} holds {min_inliers} of the {len(sub)} subsampled points; "
+                              "is a table in view?")
+    # Support is counted on a grid twice as fine as RANSAC's, so a small far can counts. A point
+    # stands on a plane when it is off every plane found and above this one by more than
+    # min_height plus 3.5 sigma of depth noise at its range (far floor points stray several
+    # centimetres off the floor by noise alone), and below max_height.
+    step = max(int(config.support_step), 1)
+    grid = pts[::step, ::step] if pts.ndim == 3 else pts[::step * step]
+    grid = grid.reshape(-1, 3)
+    grid = grid[np.isfinite(grid).all(axis=1)].astype(float)
+    heights = np.stack([p.signed_distance(grid) for p in planes])
+    sigma = config.noise_coefficient * np.einsum("ij,ij->i", grid - viewpoint, grid - viewpoint)
+    free = (np.abs(heights) > np.maximum(config.plane_distance, 3.5 * sigma)).all(axis=0)
+    low = config.min_height + 3.5 * sigma
+    candidates = []
+    for plane, height in zip(planes, heights):
+        support = int(np.count_nonzero(free & (height > low) & (height < config.max_height)))
+        candidates.append((plane, support))
+    supported = [c for c in candidates if c[1] >= config.min_support]
+    best = max(supported, key=lambda c: c[1]) if supported else max(candidates, key=lambda c: c[0].n_points)
+    r = int(config.refine_step)
+    dense = pts[::r, ::r] if pts.ndim == 3 else pts[::r]
+    plane, T, _ = g.refine_plane(dense, best[0], config.refine_band, viewpoint, iterations=1)
+    return plane, T, candidates
+
+
+# --- the cans -------------------------------------------------------------------------------------
+
+
+def shape_error(xy, cx, cy, radius, bins):
+    """How far the points bend away from the circle systematically (m): the points are split by
+    angle around (cx, cy) into `bins` consecutive arcs of equal count, and the rms of the arcs'
+    mean radial residuals is returned. Noise averages out within an arc; a flat face does not."""
+    xy = np.asarray(xy, dtype=float)[:, :2]
+    if len(xy) < bins:
+        return float("inf")
+    angle = np.arctan2(xy[:, 1] - cy, xy[:, 0] - cx)
+    residual = np.hypot(xy[:, 0] - cx, xy[:, 1] - cy) - radius
+    # Start the arcs at the widest gap, so a side seen across the +-pi cut stays in order.
+    order = np.argsort(angle)
+    a = angle[order]
+    gaps = np.append(np.diff(a), a[0] + 2 * np.pi - a[-1])
+    start = (int(np.argmax(gaps)) + 1) % len(a)
+    order = np.roll(order, -start)
+    means = np.array([chunk.mean() for chunk in np.array_split(residual[order], bins)])
+    return float(np.sqrt(np.mean(means ** 2)))
+
+
+def fit_upright_cylinder(points_plane, sensor_plane, config=AutoConfig()):
+    """One cluster's upright cylinder (step 3 of the module docstring), in the plane frame.
+
+    points_plane: float (N, 3) cluster points in the plane frame (m, z up from the table);
+    sensor_plane: the sensor's position in the plane frame (m), for the noise level.
+    Returns (fit, height, shape, n_side, None) when every criterion holds, else
+    (fit or None, height, shape or None, n_side, reason): fit a geometry.CylinderFit, height (m),
+    shape the shape error (m), n_side the side points fitted, reason the first failed criterion.
+    """
+    c = config
+    pts = np.asarray(points_plane, dtype=float)
+    z = pts[:, 2]
+    bottom = float(z.min())
+    height = float(np.percentile(z, 99))
+    if bottom > c.min_height + c.max_base_gap:
+        return None, height, None, 0, f"floats {100 * bottom:.1f} cm above the table (not standing on it)"
+    if height < c.min_can_height:
+        return None, height, None, 0, f"only {100 * height:.1f} cm tall (min {100 * c.min_can_height:.1f} cm)"
+    sigma = c.noise_coefficient * float(np.sum((pts.mean(axis=0) - sensor_plane) ** 2))
+    side = pts[(z >= c.fit_bottom + 3 * sigma) & (z <= height - c.top_margin - 3 * sigma)]
+    if len(side) < c.min_fit_points:
+        return None, height, None, len(side), f"{len(side)} side points (min {c.min_fit_points})"
+    r_eps = max(c.r_eps, c.r_eps_sigmas * sigma)
+    if len(side) > c.max_fit_points:
+        side = side[:: int(np.ceil(len(side) / c.max_fit_points))]
+    xy = side[:, :2]
+    width = float(np.ptp(xy, axis=0).max())
+    if width > 2 * c.max_radius + 2 * r_eps:
+        return None, height, None, len(side), (f"{100 * width:.0f} cm wide, wider than a can of radius "
+                                               f"{1e3 * c.max_radius:.0f} mm")
+    try:
+        cx, cy, r0 = g.fit_circle_algebraic(xy)
+        if not r0 < 4 * c.max_radius:
+            return None, height, None, len(side), f"side is nearly straight (circle radius {100 * r0:.0f} cm)"
+        fit = g.fit_cylinder(xy, (cx, cy), r0, r_eps, max_iterations=c.fit_iterations, tol=c.fit_tolerance,
+                             min_inliers=c.min_fit_points,
+                             max_shift=max(2 * c.max_radius, r0))
+    except PerceptionError as e:
+        return None, height, None, len(side), f"no circle fits the side ({str(e).split(';')[0]})"
+    reason = None
+    inlier_fraction = fit.n_inliers / len(side)
+    max_rms = max(c.max_rms, c.max_rms_sigmas * sigma)
+    shape = shape_error(xy[fit.inliers], fit.cx, fit.cy, fit.radius, c.shape_bins)
+    if not c.min_radius <= fit.radius <= c.max_radius:
+        reason = (f"radius {1e3 * fit.radius:.1f} mm outside [{1e3 * c.min_radius:.0f}, "
+                  f"{1e3 * c.max_radius:.0f}] mm")
+    elif inlier_fraction < c.min_inlier_fraction:
+        reason = (f"only {100 * inlier_fraction:.0f}% of the side within {1e3 * r_eps:.1f} mm of the circle "
+                  f"(min {100 * c.min_inlier_fraction:.0f}%)")
+    elif fit.rms_error > max_rms:
+        reason = f"rms residual {1e3 * fit.rms_error:.2f} mm > {1e3 * max_rms:.2f} mm"
+    elif shape > c.max_shape_error:
+        reason = f"shape error {1e3 * shape:.2f} mm > {1e3 * c.max_shape_error:.2f} mm (not round)"
+    elif fit.arc_coverage < c.min_arc:
+        reason = f"side seen over {fit.arc_coverage:.2f} rad < {c.min_arc:.2f} rad"
+    return fit, height, shape, len(side), reason
+
+
+def _clusters(in_plane, config):
+    """Clusters of the points in the band above the table: list of int64 flattened indices."""
+    organized = in_plane.ndim == 3
+    how = config.clustering if config.clustering != "auto" else ("organized" if organized else "euclidean")
+    if how == "organized":
+        if not organized:
+            raise PerceptionError("organized clustering needs an (H, W, 3) cloud; use clustering='euclidean'")
+        return _native.organized_clusters(in_plane, config.cluster_distance, config.min_cluster_points,
+                                          z_min=config.min_height, z_max=config.max_height)
+    idx = g.points_above_plane(in_plane, config.min_height, config.max_height)
+    return _native.euclidean_clusters(in_plane, config.cluster_distance, config.min_cluster_points, indices=idx)
+
+
+def find_cans(xyz, viewpoint=(0.0, 0.0, 0.0), config=AutoConfig()):
+    """Every upright can standing on the support plane of a cloud, with no selection: an AutoResult.
+
+    xyz: float32 (H, W, 3) organized (fast path) or (N, 3) cloud, sensor frame (m), NaN holes;
+    viewpoint: the sensor's position in that frame (m). See the module docstring for the steps
+    and the rejection criterion. An empty result (no can) is not an error; a cloud without a
+    usable plane raises PerceptionError.
+    """
+    config.validate()
+    t0 = time.perf_counter()
+    pts = g._float32_points(xyz)
+    plane, T, candidates = find_support_plane(pts, viewpoint, config)
+    t1 = time.perf_counter()
+    T_plane_from_sensor = g.invert_transform(T)
+    in_plane = _native.transform_cloud(pts, T_plane_from_sensor)
+    sensor_plane = T_plane_from_sensor[:3, :3] @ g._vector3(viewpoint, "viewpoint") + T_plane_from_sensor[:3, 3]
+    t2 = time.perf_counter()
+    clusters = _clusters(in_plane, config)
+    t3 = time.perf_counter()
+    cans, rejected = [], []
+    R, t = T[:3, :3], T[:3, 3]
+    for idx in clusters:
+        cluster = _native.extract(in_plane, idx).astype(float)
+        fit, height, shape, n_side, reason = fit_upright_cylinder(cluster, sensor_plane, config)
+        if reason is not None:
+            rejected.append(RejectedCluster(centroid=R @ cluster.mean(axis=0) + t, n_points=len(idx), reason=reason,
+                                            radius=None if fit is None else fit.radius))
+            continue
+        T_can = g.can_pose(T, fit.cx, fit.cy)
+        cans.append(CanDetection(base_center=T_can[:3, 3].copy(), axis=T_can[:3, 2].copy(), radius=fit.radius,
+                                 height=height, rms_error=fit.rms_error, shape_error=shape,
+                                 arc_coverage=fit.arc_coverage, n_points=len(idx), n_fit_points=fit.n_inliers,
+                                 T_sensor_from_can=T_can, indices=idx))
+    cans.sort(key=lambda c: -c.n_fit_points)
+    t4 = time.perf_counter()
+    timings = {"table": t1 - t0, "transform": t2 - t1, "clusters": t3 - t2, "fits": t4 - t3, "total": t4 - t0}
+    return AutoResult(table=plane, T_sensor_from_plane=T, cans=cans, rejected=rejected,
+                      candidate_planes=candidates, timings=timings)
+
+
+# --- command line ---------------------------------------------------------------------------------
+
+
+def _parser():
+    d = AutoConfig()
+    p = argparse.ArgumentParser(
+        prog="find_cans",
+        description="Find every upright can standing on the table in a PCD scene (no selection) and "
+                    "print them as JSON (sensor frame, metres). Exits 0 also when there is none.")
+    p.add_argument("scene", metavar="SCENE.pcd", help="an organized (or unorganized) x y z PCD file")
+    p.add_argument("--min-radius", type=float, default=d.min_radius, help="m (default %(default)s)")
+    p.add_argument("--max-radius", type=float, default=d.max_radius, help="m (default %(default)s)")
+    p.add_argument("--max-height", type=float, default=d.max_height,
+                   help="objects are looked for up to this height above the table, m (default %(default)s)")
+    p.add_argument("--up", type=float, nargs=3, metavar=("X", "Y", "Z"),
+                   help="the up direction in the sensor frame; the table's normal must be within "
+                        f"--max-tilt of it (default: no prior, the plane with most on it)")
+    p.add_argument("--max-tilt", type=float, default=d.max_tilt, help="rad (default %(default)s)")
+    p.add_argument("--clustering", choices=("auto", "organized", "euclidean"), default=d.clustering,
+                   help="organized grid connected components or PCL's Euclidean clusters (default %(default)s)")
+    p.add_argument("--indent", type=int, default=2, help="JSON indent (default %(default)s)")
+    return p
+
+
+def main(argv=None):
+    """find_cans SCENE.pcd [options]: prints the result as JSON; returns the exit status (0 also
+    when no can is found, 1 when the file cannot be read or holds no table)."""
+    args = _parser().parse_args(argv)
+    from example_pcl.pcd import read_pcd  # the extension reads PCD; keep --help free of it
+
+    config = AutoConfig(min_radius=args.min_radius, max_radius=args.max_radius, max_height=args.max_height,
+                        up=None if args.up is None else tuple(args.up), max_tilt=args.max_tilt,
+                        clustering=args.clustering)
+    try:
+        config.validate()
+        cloud = read_pcd(args.scene)
+        result = find_cans(cloud.xyz, config=config)
+    except (PerceptionError, OSError) as e:
+        print(f"find_cans: {args.scene}: {e}", file=sys.stderr)
+        return 1
+    out = {"scene": args.scene, **result.to_dict()}
+    print(json.dumps(out, indent=args.indent or None))
+    print(f"find_cans: {result.message}", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
