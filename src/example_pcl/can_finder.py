@@ -11,6 +11,10 @@ The operator's flow, which :class:`CanFinder` enforces with explicit preconditio
 6. mode 3, COMPUTE_CYLINDRICAL_FIT_ERR_ITERATE: the axis fitted to the can's points, run to
    convergence.
 
+Mode 4, FIND_CAN_AUTO, needs no selection: example_pcl.auto_finder finds the table and every
+upright cylinder on it, radius unknown; the best can becomes the current estimate, so modes 0-3
+and mode 4 share their outputs.
+
 Everything is in the sensor frame (the cloud's frame, metres) unless named "plane frame" (z along
 the table normal, origin on the table; see example_pcl.geometry). Each mode returns a
 :class:`StepResult` carrying the one-line message for the operator and the points to show; a
@@ -24,6 +28,7 @@ from typing import Optional
 import numpy as np
 
 from example_pcl import _native
+from example_pcl import auto_finder
 from example_pcl import geometry
 from example_pcl.errors import PerceptionError
 
@@ -35,6 +40,7 @@ class Mode(enum.IntEnum):
     FIND_PNTS_ABOVE_PLANE = 1
     COMPUTE_CYLINDRICAL_FIT_ERR_INIT = 2
     COMPUTE_CYLINDRICAL_FIT_ERR_ITERATE = 3
+    FIND_CAN_AUTO = 4
 
 
 def describe_modes():
@@ -67,6 +73,7 @@ class FinderConfig:
     refine_iterations: int = 5
     refine_points: int = 20000
     viewpoint: tuple = (0.0, 0.0, 0.0)
+    auto: auto_finder.AutoConfig = auto_finder.AutoConfig()
 
     def validate(self):
         """Raises PerceptionError naming the first value that cannot work."""
@@ -119,6 +126,7 @@ class StepResult:
     message: str
     model: np.ndarray
     can: Optional[CanEstimate] = None
+    cans: tuple = ()  # mode 4: every auto_finder.CanDetection, best first
 
 
 @dataclass(frozen=True, eq=False)
@@ -223,7 +231,34 @@ class CanFinder:
             Mode.FIND_PNTS_ABOVE_PLANE: self.find_points_above_plane,
             Mode.COMPUTE_CYLINDRICAL_FIT_ERR_INIT: self.initial_fit,
             Mode.COMPUTE_CYLINDRICAL_FIT_ERR_ITERATE: self.iterate_fit,
+            Mode.FIND_CAN_AUTO: self.find_cans_auto,
         }[mode]()
+
+    def find_cans_auto(self):
+        """Mode 4: every upright can on the table, no selection (example_pcl.auto_finder.find_cans).
+
+        The table becomes the current plane and the best can (the best-measured, first in the
+        list) the current estimate, as after mode 3. No can found is a failure, with the reason.
+        """
+        cfg = self.config
+        found = auto_finder.find_cans(self.scene, cfg.viewpoint, cfg.auto)
+        if not found.cans:
+            raise PerceptionError(found.message + "; with several objects or a cluttered table, try the operator "
+                                  "modes 0-3")
+        best = found.cans[0]
+        in_plane = geometry.invert_transform(found.T_sensor_from_plane) @ np.append(best.base_center, 1.0)
+        can = CanEstimate(T_sensor_from_can=best.T_sensor_from_can, center_plane=in_plane[:2],
+                          rms_error=best.rms_error, n_points=best.n_fit_points, iterations=0, converged=True)
+        self.reset()
+        self.plane, self.T_sensor_from_plane = found.table, found.T_sensor_from_plane
+        self.can = can
+        models = [_native.transform_cloud(geometry.make_can_cloud(c.radius, c.height), c.T_sensor_from_can)
+                  for c in found.cans]
+        b = best.base_center
+        message = (f"{found.message}; best: base centre {_fmt(b)} m, radius {best.radius * 1e3:.1f} mm, height "
+                   f"{best.height * 1e3:.0f} mm, RMS radial error {best.rms_error * 1e3:.1f} mm over "
+                   f"{best.n_fit_points} points ({found.timings['total'] * 1e3:.0f} ms)")
+        return StepResult(Mode.FIND_CAN_AUTO, message, np.concatenate(models), can, tuple(found.cans))
 
     def identify_plane(self):
         """Mode 0: the table plane from the latest selection.

@@ -15,7 +15,8 @@ Topics (relative names; everything published latched, once per change, in ``~fra
 - published: ``kinect_pointcloud`` (sensor_msgs/PointCloud2, the scene), ``plane_model``
   (PointCloud2, what the last step found: the table's inliers, the points above it, or the can
   model at the estimate), ``can_pose`` (geometry_msgs/PoseStamped: origin at the centre of the
-  can's base, z along its axis), ``can_marker`` (visualization_msgs/Marker, a CYLINDER), and with
+  can's base, z along its axis), ``can_marker`` (visualization_msgs/Marker, a CYLINDER); after
+  mode 4 also ``can_poses`` (geometry_msgs/PoseArray) and ``can_markers`` (MarkerArray), and with
   ``~target_frame`` set, ``can_pose_target`` (the pose in that frame, through tf2); and
   ``selected_patch`` (PointCloud2, the latest selection as stored, its header's stamp copied from
   the selection's, empty when it was rejected: an acknowledgement a script can wait for before
@@ -47,6 +48,8 @@ MODEL_TOPIC = "plane_model"
 POSE_TOPIC = "can_pose"
 TARGET_POSE_TOPIC = "can_pose_target"
 MARKER_TOPIC = "can_marker"
+POSES_TOPIC = "can_poses"
+MARKERS_TOPIC = "can_markers"
 PATCH_TOPIC = "selected_patch"
 SELECTED_TOPIC = "selected_points"
 CLICKED_TOPIC = "clicked_point"
@@ -196,9 +199,9 @@ class FindCanNode:
     def __init__(self, config: FindCanConfig, scene_points):
         import rospy
         import tf2_ros
-        from geometry_msgs.msg import PointStamped, PoseStamped
+        from geometry_msgs.msg import PointStamped, PoseArray, PoseStamped
         from sensor_msgs.msg import PointCloud2
-        from visualization_msgs.msg import Marker
+        from visualization_msgs.msg import Marker, MarkerArray
 
         from example_pcl.conversions import array_to_cloud, xyz_view
         from example_pcl.srv import ProcessMode
@@ -220,6 +223,8 @@ class FindCanNode:
         self.marker_pub = pub(MARKER_TOPIC, Marker)
         self.target_pub = pub(TARGET_POSE_TOPIC, PoseStamped) if config.target_frame else None
         self.patch_pub = pub(PATCH_TOPIC, PointCloud2)
+        self.poses_pub = pub(POSES_TOPIC, PoseArray)
+        self.markers_pub = pub(MARKERS_TOPIC, MarkerArray)
         self.scene_pub.publish(array_to_cloud(scene_points, frame_id=config.frame_id, stamp=rospy.Time.now()))
         self.subscribers = [rospy.Subscriber(SELECTED_TOPIC, PointCloud2, self.on_selected_points, queue_size=2),
                             rospy.Subscriber(CLICKED_TOPIC, PointStamped, self.on_clicked_point, queue_size=2)]
@@ -228,7 +233,8 @@ class FindCanNode:
     def topics(self):
         """The resolved names of the node's topics and service, for the start-up log."""
         resolve = self._rospy.resolve_name
-        return {name: resolve(name) for name in (SCENE_TOPIC, MODEL_TOPIC, POSE_TOPIC, MARKER_TOPIC, PATCH_TOPIC,
+        return {name: resolve(name) for name in (SCENE_TOPIC, MODEL_TOPIC, POSE_TOPIC, MARKER_TOPIC, POSES_TOPIC,
+                                                 MARKERS_TOPIC, PATCH_TOPIC,
                                                  SELECTED_TOPIC, CLICKED_TOPIC, SERVICE)}
 
     # --- frames ---
@@ -323,16 +329,37 @@ class FindCanNode:
         if result.mode == Mode.IDENTIFY_PLANE:
             self.marker_pub.publish(delete_marker(frame))
         self.model_pub.publish(xyz_to_cloud(result.model, frame_id=frame, stamp=stamp))
+        if result.mode == Mode.FIND_CAN_AUTO:
+            self._publish_all_cans(result.cans, frame, stamp)
         if result.can is not None:
             T = result.can.T_sensor_from_can
             pose = pose_message(T, frame, stamp)
             self.pose_pub.publish(pose)
-            self.marker_pub.publish(can_marker(T, self.config.finder.can_radius, self.config.finder.can_height,
-                                               frame, stamp))
+            radius, height = ((result.cans[0].radius, result.cans[0].height) if result.cans else
+                              (self.config.finder.can_radius, self.config.finder.can_height))
+            self.marker_pub.publish(can_marker(T, radius, height, frame, stamp))
             message += f" (frame {frame})"
             if self.target_pub is not None:
                 message += "; " + self._publish_in_target(pose)
         return message
+
+    def _publish_all_cans(self, cans, frame, stamp):
+        """Mode 4's can_poses (PoseArray) and can_markers (MarkerArray: one cylinder each, the old ones deleted)."""
+        from geometry_msgs.msg import PoseArray
+        from visualization_msgs.msg import Marker, MarkerArray
+
+        poses = PoseArray()
+        poses.header.frame_id, poses.header.stamp = frame, stamp
+        poses.poses = [pose_message(c.T_sensor_from_can, frame, stamp).pose for c in cans]
+        self.poses_pub.publish(poses)
+        clear = Marker(action=Marker.DELETEALL)
+        clear.header.frame_id = frame
+        markers = [clear]
+        for i, c in enumerate(cans):
+            marker = can_marker(c.T_sensor_from_can, c.radius, c.height, frame, stamp)
+            marker.ns, marker.id = "can_markers", i
+            markers.append(marker)
+        self.markers_pub.publish(MarkerArray(markers=markers))
 
     def _publish_in_target(self, pose):
         """Publishes the pose in ~target_frame through tf2; returns a clause for the message."""

@@ -1,65 +1,11 @@
-"""Fixtures of the integration tests: a private ROS master and node processes started from pytest."""
-import os
-import signal
-import socket
-import subprocess
-import time
+"""Fixtures of the integration tests."""
+import pathlib
+import sys
 
 import pytest
 
-
-def free_port():
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-class RosGraph:
-    """A roscore on a free port and the processes started against it; all stopped at teardown."""
-
-    def __init__(self, tmp_path):
-        self.env = dict(os.environ, ROS_MASTER_URI=f"http://127.0.0.1:{free_port()}", ROS_HOME=str(tmp_path / "ros"),
-                        ROS_IP="127.0.0.1")
-        self.env.pop("ROS_HOSTNAME", None)
-        self.tmp_path = tmp_path
-        self.processes = []
-        self.start("roscore", ["roscore", "-p", self.env["ROS_MASTER_URI"].rsplit(":", 1)[1]])
-        deadline = time.monotonic() + 30
-        while subprocess.run(["rostopic", "list"], env=self.env, capture_output=True).returncode != 0:
-            if time.monotonic() > deadline:
-                raise RuntimeError("roscore did not come up")
-            time.sleep(0.3)
-
-    def start(self, name, cmd, cwd=None):
-        log = open(self.tmp_path / f"{name}.log", "w")
-        proc = subprocess.Popen(cmd, env=self.env, stdout=log, stderr=subprocess.STDOUT, cwd=cwd or self.tmp_path,
-                                start_new_session=True)
-        proc.name, proc.log_path = name, self.tmp_path / f"{name}.log"
-        self.processes.append(proc)
-        return proc
-
-    def rosrun(self, name, node, *params, cwd=None):
-        return self.start(name, ["rosrun", "example_pcl", node, *params], cwd=cwd)
-
-    @staticmethod
-    def stop(proc, sig=signal.SIGINT, timeout=20):
-        if proc.poll() is None:
-            try:
-                os.killpg(proc.pid, sig)
-                proc.wait(timeout)
-            except subprocess.TimeoutExpired:
-                os.killpg(proc.pid, signal.SIGKILL)
-                proc.wait()
-            except ProcessLookupError:
-                pass
-        return proc.returncode
-
-    def log(self, proc):
-        return proc.log_path.read_text()
-
-    def close(self):
-        for proc in reversed(self.processes):
-            self.stop(proc, signal.SIGKILL, timeout=5)
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
+from graph_helpers import RosGraph  # noqa: E402
 
 
 @pytest.fixture
@@ -68,12 +14,3 @@ def ros_graph(tmp_path):
     graph = RosGraph(tmp_path)
     yield graph
     graph.close()
-
-
-def wait_for(predicate, timeout, step=0.1):
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if predicate():
-            return True
-        time.sleep(step)
-    return False

@@ -5,7 +5,7 @@ import sys
 
 import numpy as np
 import pytest
-from conftest import wait_for
+from graph_helpers import wait_for
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 from malformed_sender import KINDS  # noqa: E402

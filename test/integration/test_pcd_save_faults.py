@@ -7,7 +7,7 @@ import time
 
 import numpy as np
 import pytest
-from conftest import wait_for
+from graph_helpers import wait_for
 
 from example_pcl import pcd, scene
 

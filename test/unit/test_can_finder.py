@@ -233,10 +233,10 @@ def test_out_of_order_calls(steps, mode, match):
         f.process(mode)
 
 
-@pytest.mark.parametrize("mode", [4, -1, 99, "x"])
+@pytest.mark.parametrize("mode", [5, -1, 99, "x"])
 def test_unknown_mode(mode):
     """An unknown mode fails listing the modes."""
-    with pytest.raises(PerceptionError, match="unknown mode.*0 IDENTIFY_PLANE.*3 COMPUTE_CYLINDRICAL_FIT_ERR_ITERATE"):
+    with pytest.raises(PerceptionError, match="unknown mode.*0 IDENTIFY_PLANE.*4 FIND_CAN_AUTO"):
         fresh(make_scene(1.0, 0.9)).process(mode)
 
 
@@ -302,3 +302,27 @@ def test_config_is_validated(field, value):
     """A FinderConfig value that cannot work is refused when the finder is made."""
     with pytest.raises(PerceptionError, match=field):
         CanFinder(np.zeros((10, 3), np.float32), FinderConfig(**{field: value}))
+
+
+def test_mode_4_finds_every_can_without_a_selection():
+    """Mode 4 finds both cans with no selection; the best becomes the estimate and the table the plane."""
+    scene = make_scene(1.0, 0.9, second_can=(0.12, 0.08))
+    f = CanFinder(scene.xyz, FinderConfig())
+    result = f.process(4)
+    assert result.mode == Mode.FIND_CAN_AUTO and len(result.cans) == 2
+    errors = sorted(min(np.linalg.norm(c.base_center - np.asarray(t["base_center"])) for c in result.cans)
+                    for t in scene.truth["cans"])
+    assert errors[-1] < 0.003, errors
+    assert f.can is not None and f.plane is not None
+    assert np.allclose(f.can.T_sensor_from_can, result.cans[0].T_sensor_from_can)
+    assert abs(f.plane.normal @ np.asarray(scene.truth["table"]["normal"])) > np.cos(np.radians(0.5))
+    assert "found 2 can(s)" in result.message
+
+
+def test_mode_4_with_no_can_fails_with_the_reason():
+    """Mode 4 on a table without cans fails saying nothing was found, and keeps the previous state."""
+    empty = sc.generate_scene(sc.SceneSpec(cans=[], boxes=[(0.0, 0.0, 0.1, 0.06, 0.12)], seed=2))
+    f = CanFinder(empty.xyz, FinderConfig())
+    with pytest.raises(PerceptionError, match="no can found"):
+        f.process(4)
+    assert f.can is None
