@@ -1,4 +1,5 @@
-"""The one exception class of example_pcl."""
+"""The one exception class of example_pcl, and how nodes group its messages for logging."""
+import re
 
 
 class PerceptionError(ValueError):
@@ -9,3 +10,12 @@ class PerceptionError(ValueError):
     went wrong and, where there is one, what to do next. Nodes log it and keep running; service
     handlers answer ``success=False`` with the message.
     """
+
+
+def warning_kind(error: Exception) -> str:
+    """A key grouping errors of one kind: the message with its numbers and quoted names blanked.
+
+    Nodes log the first error of each kind as a warning and count the rest, so a publisher
+    sending the same bad message at 30 Hz cannot flood the log.
+    """
+    return re.sub(r"'[^']*'", "'…'", re.sub(r"\d+", "N", str(error)))

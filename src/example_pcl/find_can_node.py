@@ -41,7 +41,7 @@ from typing import Callable
 import numpy as np
 
 from example_pcl.can_finder import CanFinder, FinderConfig, Mode, describe_modes
-from example_pcl.errors import PerceptionError
+from example_pcl.errors import PerceptionError, warning_kind
 
 SCENE_TOPIC = "kinect_pointcloud"
 MODEL_TOPIC = "plane_model"
@@ -54,6 +54,7 @@ PATCH_TOPIC = "selected_patch"
 SELECTED_TOPIC = "selected_points"
 CLICKED_TOPIC = "clicked_point"
 SERVICE = "process_mode"
+MAX_SELECTION_POINTS = 2_000_000  # more is a runaway publisher, not an operator's selection
 
 
 def package_path(*parts):
@@ -209,6 +210,7 @@ class FindCanNode:
         self._rospy = rospy
         self.config = config
         self.lock = threading.Lock()
+        self._warned_kinds = set()
         xyz = np.ascontiguousarray(xyz_view(scene_points), dtype=np.float32)
         self.finder = CanFinder(xyz, config.finder)
         self.tf_buffer = tf2_ros.Buffer()
@@ -260,11 +262,11 @@ class FindCanNode:
 
     def on_selected_points(self, msg):
         """selected_points: the points become the latest selection (in ~frame_id)."""
-        from example_pcl.conversions import cloud_to_xyz
+        from example_pcl.conversions import validate_cloud, xyz_view
 
         with self.lock:
             try:
-                pts = np.asarray(cloud_to_xyz(msg), dtype=float).reshape(-1, 3)
+                pts = np.asarray(xyz_view(validate_cloud(msg, MAX_SELECTION_POINTS)), dtype=float).reshape(-1, 3)
                 T = self._to_scene_frame(msg.header.frame_id, "the selection")
                 if T is not None:
                     pts = pts @ T[:3, :3].T + T[:3, 3]
@@ -272,7 +274,13 @@ class FindCanNode:
             except PerceptionError as e:
                 self.finder.reject_selection(str(e))
                 self._acknowledge(None, msg.header.stamp)
-                self._rospy.logwarn("find_can: selection rejected: %s", e)
+                kind = warning_kind(e)
+                if kind in self._warned_kinds:
+                    self._rospy.logdebug("find_can: selection rejected: %s", e)
+                else:
+                    self._warned_kinds.add(kind)
+                    self._rospy.logwarn("find_can: selection rejected: %s (further selections rejected for this "
+                                        "reason are logged at debug level)", e)
                 return
             self._acknowledge(pts, msg.header.stamp)
             self._rospy.loginfo("find_can: selection of %d finite point(s) (of %d) stored as the patch for the next "

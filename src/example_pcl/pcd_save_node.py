@@ -48,7 +48,7 @@ from numpy.lib import recfunctions
 
 from example_pcl import conversions
 from example_pcl.conversions import dtype_to_fields
-from example_pcl.errors import PerceptionError
+from example_pcl.errors import PerceptionError, warning_kind
 from example_pcl.pcd import FORMATS, atomic_path, write_pcd
 
 TOPIC = "kinect/depth/points"
@@ -165,11 +165,6 @@ def validate_cloud(msg, max_points: int = 0) -> np.ndarray:
     points, no x/y/z, more than ``max_points`` (0 = no limit), no finite point.
     """
     return conversions.validate_cloud(msg, max_points=max_points or None)
-
-
-def warning_kind(error: Exception) -> str:
-    """A key grouping errors of one kind: the message with its numbers and quoted names blanked."""
-    return re.sub(r"'[^']*'", "'…'", re.sub(r"\d+", "N", str(error)))
 
 
 def packed_points(points: np.ndarray) -> np.ndarray:

@@ -30,3 +30,22 @@ def test_pcd_save_drops_each_malformed_kind_once_then_saves(ros_graph, tmp_path)
     assert len(warnings) == len(KINDS), "\n".join(warnings)
     good = np.load(tmp_path / "good.npz")["xyz"]
     np.testing.assert_array_equal(pcd.read_pcd(out).xyz, good)
+
+
+def test_find_can_rejects_each_malformed_selection_once_then_takes_the_next(ros_graph, tmp_path):
+    """find_can warns once per malformed kind on selected_points, keeps answering, and stores the next good selection."""
+    from example_pcl import scene
+
+    scene_path = tmp_path / "scene.pcd"
+    scene.main([str(scene_path), "--format", "binary", "--seed", "4"])
+    node = ros_graph.rosrun("find_can", "find_can", f"_pcd_file:={scene_path}")
+    sender = ros_graph.start("sender", [sys.executable, SENDER, "/selected_points", str(tmp_path / "good.npz")])
+    assert wait_for(lambda: "selection of" in ros_graph.log(node), 90), ros_graph.log(node)
+    ros_graph.stop(sender)
+    answer = subprocess.run(["rosservice", "call", "/process_mode", "7"], env=ros_graph.env, capture_output=True,
+                            text=True, timeout=30)
+    assert "unknown mode 7" in answer.stdout, answer.stdout + answer.stderr
+    log = ros_graph.log(node)
+    assert node.poll() is None, log
+    warnings = [line for line in log.splitlines() if "selection rejected" in line and "[WARN]" in line]
+    assert len(warnings) == len(KINDS), "\n".join(warnings)
