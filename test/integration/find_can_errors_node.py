@@ -63,14 +63,14 @@ class Errors(unittest.TestCase):
         self.fails(0, "no patch selected; select a patch on the table")
         for mode in (1, 2, 3):
             self.fails(mode, "identify the table first: select a table patch and call mode 0")
-        for mode in (4, -1, 1000):
+        for mode in (5, -1, 1000):
             self.fails(mode, f"unknown mode {mode}", "0 IDENTIFY_PLANE", "3 COMPUTE_CYLINDRICAL_FIT_ERR_ITERATE")
 
     def test_2_bad_table_selections(self):
         """Empty, all-NaN, two-point and collinear selections are stored and make mode 0 fail with
         the reason and what to do; the node keeps running."""
         p = select_points(self.xyz, rect=TABLE_RECT)[0].astype(float)
-        bad = [(np.zeros((0, 3)), "empty"), (np.full((30, 3), np.nan), "no finite points"),
+        bad = [(np.zeros((0, 3)), "empty"), (np.full((30, 3), np.nan), "no finite point"),
                (p + [[0, 0, 0], [0.01, 0, 0]], "select a larger patch"),
                (p + np.outer(np.linspace(-0.02, 0.02, 40), [1.0, 0, 0]), "select an area")]
         for points, reason in bad:
