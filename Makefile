@@ -8,7 +8,7 @@ DEVEL_SETUP := $(WS)/devel/setup.bash
 IN_DEVEL    := bash -c 'source $(DEVEL_SETUP) && exec "$$@"' --
 PYTEST_ARGS ?=
 
-.PHONY: setup build demo test unit bench clean
+.PHONY: setup build demo test unit bench screenshots clean
 
 setup:
 	@tools/setup.sh
@@ -39,6 +39,10 @@ unit: build
 bench: build
 	@bench_python=$$(tools/bench_env.sh build/bench-venv) && \
 	  PCD_IO_PCL=$(WS)/devel/lib/example_pcl/bench/pcd_io_pcl $(IN_DEVEL) $$bench_python bench/run_all.py
+
+# The README's rviz pictures (docs/rviz/*.jpg): the operator test in a real rviz under Xvfb saves each step.
+screenshots: build
+	@EXAMPLE_PCL_SCREENSHOTS=$(CURDIR)/docs/rviz $(IN_DEVEL) $(PYTHON) -m pytest test/integration/test_rviz_operator.py $(PYTEST_ARGS)
 
 clean:
 	rm -rf build
