@@ -27,6 +27,31 @@ def sh(*args, check=True):
     return subprocess.run(args, check=check, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
 
 
+def stop_process(proc, sig=signal.SIGINT, timeout=20):
+    """Signals the process group of proc (started with start_new_session=True) and waits; SIGKILL
+    if it does not end within timeout s. Returns its exit status."""
+    if proc.poll() is None:
+        try:
+            os.killpg(proc.pid, sig)
+            proc.wait(timeout)
+        except subprocess.TimeoutExpired:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+        except ProcessLookupError:
+            pass
+    return proc.returncode
+
+
+def wait_for(predicate, timeout, step=0.1):
+    """True as soon as predicate() is, False once timeout s have passed."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if predicate():
+            return True
+        time.sleep(step)
+    return False
+
+
 class NetnsGraph:
     """Network namespaces as hosts on one bridged link; a context manager that cleans up after itself."""
 
@@ -85,19 +110,7 @@ class NetnsGraph:
         return subprocess.run(["ip", "netns", "exec", self.namespaces[host], *cmd], env=self.env(host, **env),
                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, timeout=timeout)
 
-    @staticmethod
-    def stop(proc, sig=signal.SIGINT, timeout=15):
-        """Signals the process group of proc and waits; SIGKILL if it does not end in time."""
-        if proc.poll() is None:
-            try:
-                os.killpg(proc.pid, sig)
-                proc.wait(timeout)
-            except subprocess.TimeoutExpired:
-                os.killpg(proc.pid, signal.SIGKILL)
-                proc.wait()
-            except ProcessLookupError:
-                pass
-        return proc.returncode
+    stop = staticmethod(stop_process)
 
     def wait_for_master(self, timeout=30):
         deadline = time.monotonic() + timeout
@@ -106,15 +119,6 @@ class NetnsGraph:
                 return
             time.sleep(0.5)
         raise RuntimeError(f"no ROS master at {self.master_uri} after {timeout} s")
-
-
-def wait_for(predicate, timeout, step=0.2):
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if predicate():
-            return True
-        time.sleep(step)
-    return False
 
 
 def netns_available():

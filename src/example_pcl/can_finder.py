@@ -166,7 +166,7 @@ class CanFinder:
         self.T_sensor_from_plane = None
         self.plane_indices = None  # int64 indices (flattened scene) of the table's inliers
         self._scene_in_plane = None  # float32, the scene in the plane frame, same shape as the scene
-        self._table_serial = -1  # serial of the selection mode 0 used
+        self._table_serial = -1  # the latest selection's serial when mode 0 or 4 set the table
         self.above_indices = None  # int64 indices of the points above the table
         self.can_patch = None  # float64 (K, 3) sensor frame, as used by mode 2
         self.can = None  # CanEstimate
@@ -237,7 +237,8 @@ class CanFinder:
     def find_cans_auto(self):
         """Mode 4: every upright can on the table, no selection (example_pcl.auto_finder.find_cans).
 
-        The table becomes the current plane and the best can (the best-measured, first in the
+        The table becomes the current plane, as after mode 0 (mode 1 can follow; only a selection
+        made after mode 4 is the can patch), and the best can (the best-measured, first in the
         list) the current estimate, as after mode 3. No can found is a failure, with the reason.
         """
         cfg = self.config
@@ -249,8 +250,7 @@ class CanFinder:
         in_plane = geometry.invert_transform(found.T_sensor_from_plane) @ np.append(best.base_center, 1.0)
         can = CanEstimate(T_sensor_from_can=best.T_sensor_from_can, center_plane=in_plane[:2],
                           rms_error=best.rms_error, n_points=best.n_fit_points, iterations=0, converged=True)
-        self.reset()
-        self.plane, self.T_sensor_from_plane = found.table, found.T_sensor_from_plane
+        self._set_table(found.table, found.T_sensor_from_plane)
         self.can = can
         models = [_native.transform_cloud(geometry.make_can_cloud(c.radius, c.height), c.T_sensor_from_can)
                   for c in found.cans]
@@ -279,20 +279,28 @@ class CanFinder:
             if abs(plane.d - previous.d) < 1e-7 and plane.normal @ previous.normal > 1 - 1e-12:
                 break
         origin = plane.centroid - plane.signed_distance(plane.centroid) * plane.normal
-        T = geometry.plane_frame(plane.normal, origin)
-        indices, in_plane = geometry.plane_inliers(self.scene, T, cfg.z_eps)
-        if len(indices) < 3:
-            raise PerceptionError(f"only {len(indices)} point(s) lie within {cfg.z_eps} m of the plane; "
-                                  "select a patch on the table")
-        self.reset()
-        self.plane, self.T_sensor_from_plane = plane, T
-        self.plane_indices, self._scene_in_plane = indices, in_plane
-        self._table_serial = self._selection.serial
+        indices = self._set_table(plane, geometry.plane_frame(plane.normal, origin))
         tilt = np.degrees(np.arccos(np.clip(abs(patch.normal @ plane.normal), 0, 1)))
         message = (f"table plane: normal {_fmt(plane.normal)}, d={plane.d:.3f} m, {len(indices)} inliers "
                    f"within {cfg.z_eps * 1e3:.0f} mm (refined in {iterations} iterations from a "
                    f"{patch.n_points}-point patch {tilt:.1f} deg off)")
         return StepResult(Mode.IDENTIFY_PLANE, message, _native.extract(self.scene, indices))
+
+    def _set_table(self, plane, T_sensor_from_plane):
+        """Makes `plane` (sensor frame) with its plane frame the current table, as modes 0 and 4
+        leave it: everything after it forgotten, the scene in the plane frame, the inliers within
+        z_eps; only a selection made from now on is the can patch. Returns the inliers' indices;
+        raises PerceptionError (state kept) when fewer than 3 points lie on the plane."""
+        z_eps = self.config.z_eps
+        indices, in_plane = geometry.plane_inliers(self.scene, T_sensor_from_plane, z_eps)
+        if len(indices) < 3:
+            raise PerceptionError(f"only {len(indices)} point(s) lie within {z_eps} m of the plane; "
+                                  "select a patch on the table")
+        self.reset()
+        self.plane, self.T_sensor_from_plane = plane, T_sensor_from_plane
+        self.plane_indices, self._scene_in_plane = indices, in_plane
+        self._table_serial = self._serial
+        return indices
 
     def _require_plane(self):
         if self.plane is None:

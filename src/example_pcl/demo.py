@@ -48,13 +48,15 @@ class FindCanClient:
         ns = namespace.rstrip("/") + "/" if namespace else ""
         self._cond = threading.Condition()
         self.latest = {}  # topic -> (count, message)
+        self._acks = {}  # selected_patch stamp -> points acknowledged, until _acknowledged takes it
         self.selected_pub = rospy.Publisher(ns + "selected_points", PointCloud2, queue_size=2)
         self.clicked_pub = rospy.Publisher(ns + "clicked_point", PointStamped, queue_size=2)
         self.subscribers = [rospy.Subscriber(ns + topic, kind, self._store, callback_args=topic, queue_size=2)
                             for topic, kind in (("selected_patch", PointCloud2), ("plane_model", PointCloud2),
                                                 ("can_pose", PoseStamped), ("kinect_pointcloud", PointCloud2))]
-        rospy.wait_for_service(ns + "process_mode", timeout=timeout)
-        self._service = rospy.ServiceProxy(ns + "process_mode", ProcessMode, persistent=False)
+        self.service_name = rospy.resolve_name(ns + "process_mode")
+        rospy.wait_for_service(self.service_name, timeout=timeout)
+        self._service = rospy.ServiceProxy(self.service_name, ProcessMode, persistent=False)
         deadline = time.monotonic() + timeout
         while min(self.selected_pub.get_num_connections(), self.clicked_pub.get_num_connections()) == 0:
             if time.monotonic() > deadline:
@@ -65,6 +67,8 @@ class FindCanClient:
         with self._cond:
             count = self.latest.get(topic, (0, None))[0] + 1
             self.latest[topic] = (count, msg)
+            if topic == "selected_patch":
+                self._acks[msg.header.stamp] = msg.width * msg.height
             self._cond.notify_all()
 
     def count(self, topic):
@@ -74,15 +78,24 @@ class FindCanClient:
 
     def wait_for(self, topic, after=0, predicate=None):
         """The first message of `topic` after `after` arrived messages (and matching predicate)."""
+        def arrived():
+            count, msg = self.latest.get(topic, (0, None))
+            return msg if count > after and (predicate is None or predicate(msg)) else None
+
+        return self._wait(arrived, f"no message on {topic}")
+
+    def _wait(self, get, what):
+        """get() (called under the lock, on each message) once it is not None; PerceptionError
+        saying `what` after the timeout."""
         deadline = time.monotonic() + self.timeout
         with self._cond:
             while True:
-                count, msg = self.latest.get(topic, (0, None))
-                if count > after and (predicate is None or predicate(msg)):
-                    return msg
+                value = get()
+                if value is not None:
+                    return value
                 left = deadline - time.monotonic()
                 if left <= 0:
-                    raise PerceptionError(f"no message on {topic} within {self.timeout} s")
+                    raise PerceptionError(f"{what} within {self.timeout} s")
                 self._cond.wait(left)
 
     def _stamp(self):
@@ -110,8 +123,8 @@ class FindCanClient:
         return self._acknowledged(msg.header.stamp)
 
     def _acknowledged(self, stamp):
-        ack = self.wait_for("selected_patch", predicate=lambda m: m.header.stamp == stamp)
-        return ack.width * ack.height
+        # By stamp, not the latest message: another selection's acknowledgement may follow at once.
+        return self._wait(lambda: self._acks.pop(stamp, None), "no acknowledgement on selected_patch")
 
     def call(self, mode):
         """process_mode(mode): (success, message)."""

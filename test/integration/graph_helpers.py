@@ -1,9 +1,14 @@
 """Helpers of the integration tests: a private ROS master, node processes, waiting for a condition."""
 import os
+import pathlib
 import signal
 import socket
 import subprocess
+import sys
 import time
+
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[2] / "tools"))
+from netns_graph import stop_process, wait_for  # noqa: E402, F401  (wait_for: for the tests)
 
 
 def free_port():
@@ -39,18 +44,7 @@ class RosGraph:
     def rosrun(self, name, node, *params, cwd=None):
         return self.start(name, ["rosrun", "example_pcl", node, *params], cwd=cwd)
 
-    @staticmethod
-    def stop(proc, sig=signal.SIGINT, timeout=20):
-        if proc.poll() is None:
-            try:
-                os.killpg(proc.pid, sig)
-                proc.wait(timeout)
-            except subprocess.TimeoutExpired:
-                os.killpg(proc.pid, signal.SIGKILL)
-                proc.wait()
-            except ProcessLookupError:
-                pass
-        return proc.returncode
+    stop = staticmethod(stop_process)
 
     def log(self, proc):
         return proc.log_path.read_text()
@@ -58,12 +52,3 @@ class RosGraph:
     def close(self):
         for proc in reversed(self.processes):
             self.stop(proc, signal.SIGKILL, timeout=5)
-
-
-def wait_for(predicate, timeout, step=0.1):
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if predicate():
-            return True
-        time.sleep(step)
-    return False

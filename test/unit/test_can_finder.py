@@ -326,3 +326,21 @@ def test_mode_4_with_no_can_fails_with_the_reason():
     with pytest.raises(PerceptionError, match="no can found"):
         f.process(4)
     assert f.can is None
+
+
+def test_modes_1_to_3_continue_from_mode_4():
+    """After mode 4, mode 1 finds the points above its table, an earlier selection is not taken as
+    the can patch, and a can patch selected after mode 4 gives the same centre (0.1 mm) as modes 0-3."""
+    scene = make_scene(1.0, 0.9)
+    _, reference = run(scene)
+    f = CanFinder(scene.xyz, FinderConfig())
+    f.select(table_patch(scene))
+    f.process(4)
+    above = f.process(1)
+    assert abs(len(above.model) - len(reference[1].model)) <= 0.005 * len(reference[1].model)
+    with pytest.raises(PerceptionError, match="no can patch yet"):
+        f.process(2)
+    f.select(can_patch(scene))
+    f.process(2)
+    fit = f.process(3)
+    assert np.linalg.norm(fit.can.base_center - reference[3].can.base_center) < 1e-4
