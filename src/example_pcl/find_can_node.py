@@ -365,7 +365,7 @@ class FindCanNode:
                 self._rospy.logerr("find_can: mode %s not run: %s", request.mode, e)
                 return ProcessModeResponse(success=False, message=str(e))
             prior = "" if up is None else "; up prior ({:.3f}, {:.3f}, {:.3f}) (+z of {})".format(
-                *up, self.config.up_frame)
+                *(up + 0.0), self.config.up_frame)  # + 0.0: no "-0.000"
             try:
                 result = self.finder.process(request.mode, up=up)
                 message = self._publish(result) + prior
