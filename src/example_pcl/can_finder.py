@@ -21,6 +21,7 @@ the table normal, origin on the table; see example_pcl.geometry). Each mode retu
 step that cannot run raises :class:`~example_pcl.errors.PerceptionError` saying what to do next
 and leaves the state as it was.
 """
+import dataclasses
 import enum
 from dataclasses import dataclass
 from typing import Optional
@@ -220,32 +221,43 @@ class CanFinder:
 
     # --- modes ------------------------------------------------------------------------------------
 
-    def process(self, mode):
-        """Runs one mode (int or Mode); returns its StepResult or raises PerceptionError."""
+    def process(self, mode, up=None):
+        """Runs one mode (int or Mode); returns its StepResult or raises PerceptionError.
+
+        up: mode 4's prior, the table's up direction in the sensor frame (3 numbers, any length
+        but zero), replacing config.auto.up for this call; modes 0-3 have no use for it.
+        """
         try:
             mode = Mode(int(mode))
         except (TypeError, ValueError):
             raise PerceptionError(f"unknown mode {mode!r}; use {describe_modes()}") from None
+        if mode == Mode.FIND_CAN_AUTO:
+            return self.find_cans_auto(up)
         return {
             Mode.IDENTIFY_PLANE: self.identify_plane,
             Mode.FIND_PNTS_ABOVE_PLANE: self.find_points_above_plane,
             Mode.COMPUTE_CYLINDRICAL_FIT_ERR_INIT: self.initial_fit,
             Mode.COMPUTE_CYLINDRICAL_FIT_ERR_ITERATE: self.iterate_fit,
-            Mode.FIND_CAN_AUTO: self.find_cans_auto,
         }[mode]()
 
-    def find_cans_auto(self):
+    def find_cans_auto(self, up=None):
         """Mode 4: every upright can on the table, no selection (example_pcl.auto_finder.find_cans).
 
-        The table becomes the current plane, as after mode 0 (mode 1 can follow; only a selection
-        made after mode 4 is the can patch), and the best can (the best-measured, first in the
-        list) the current estimate, as after mode 3. No can found is a failure, with the reason.
+        up: the table's up direction (sensor frame), replacing config.auto.up when given; only
+        planes within config.auto.max_tilt of it are taken for the table. The table becomes the
+        current plane, as after mode 0 (mode 1 can follow; only a selection made after mode 4 is the
+        can patch), and the best can (the best-measured, first in the list) the current estimate,
+        as after mode 3. No can found is a failure saying why (up to three objects on the table with
+        the criterion each failed), and the state is kept.
         """
         cfg = self.config
-        found = auto_finder.find_cans(self.scene, cfg.viewpoint, cfg.auto)
+        auto = cfg.auto if up is None else dataclasses.replace(cfg.auto, up=tuple(geometry._unit(up, "up")))
+        found = auto_finder.find_cans(self.scene, cfg.viewpoint, auto)
         if not found.cans:
-            raise PerceptionError(found.message + "; with several objects or a cluttered table, try the operator "
-                                  "modes 0-3")
+            reasons = "".join(f"; object {i + 1} ({r.n_points} points at {_fmt(r.centroid)} m): {r.reason}"
+                              for i, r in enumerate(found.rejected[:3]))
+            raise PerceptionError(f"{found.message}{reasons}; with several objects or a cluttered table, try the "
+                                  "operator modes 0-3")
         best = found.cans[0]
         in_plane = geometry.invert_transform(found.T_sensor_from_plane) @ np.append(best.base_center, 1.0)
         can = CanEstimate(T_sensor_from_can=best.T_sensor_from_can, center_plane=in_plane[:2],

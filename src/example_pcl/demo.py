@@ -33,10 +33,12 @@ class FindCanClient:
     """Talks to find_can: publishes selections, waits for their acknowledgement on
     selected_patch, calls process_mode and keeps the latest plane_model and can_pose.
 
-    rospy must be initialised. namespace: where the node's topics and service live ("" = here).
+    rospy must be initialised. namespace: where the node's topics and service live ("" = here);
+    frame_id: the frame selections and clicks are sent in (the node's ~frame_id, unless tf2 knows
+    a transform from it).
     """
 
-    def __init__(self, namespace="", timeout=30.0):
+    def __init__(self, namespace="", timeout=30.0, frame_id="world"):
         import rospy
         from geometry_msgs.msg import PointStamped, PoseStamped
         from sensor_msgs.msg import PointCloud2
@@ -45,6 +47,7 @@ class FindCanClient:
 
         self._rospy = rospy
         self.timeout = timeout
+        self.frame_id = frame_id
         ns = namespace.rstrip("/") + "/" if namespace else ""
         self._cond = threading.Condition()
         self.latest = {}  # topic -> (count, message)
@@ -103,21 +106,23 @@ class FindCanClient:
         now = self._rospy.Time.now()
         return now if not now.is_zero() else self._rospy.Time(0, 1)
 
-    def select(self, points, frame_id="world"):
-        """Publishes points (N, 3, m) on selected_points; returns how many the node stored (0 = rejected)."""
+    def select(self, points, frame_id=None):
+        """Publishes points (N, 3, m) on selected_points in frame_id (default the client's);
+        returns how many the node stored (0 = rejected)."""
         from example_pcl.conversions import xyz_to_cloud
 
         stamp = self._stamp()
-        self.selected_pub.publish(xyz_to_cloud(np.asarray(points, np.float32).reshape(-1, 3), frame_id=frame_id,
-                                               stamp=stamp))
+        self.selected_pub.publish(xyz_to_cloud(np.asarray(points, np.float32).reshape(-1, 3),
+                                               frame_id=frame_id or self.frame_id, stamp=stamp))
         return self._acknowledged(stamp)
 
-    def click(self, point, frame_id="world"):
-        """Publishes a clicked_point (x, y, z, m); returns how many scene points the node selected."""
+    def click(self, point, frame_id=None):
+        """Publishes a clicked_point (x, y, z, m) in frame_id (default the client's); returns how
+        many scene points the node selected."""
         from geometry_msgs.msg import PointStamped
 
         msg = PointStamped()
-        msg.header.frame_id, msg.header.stamp = frame_id, self._stamp()
+        msg.header.frame_id, msg.header.stamp = frame_id or self.frame_id, self._stamp()
         msg.point.x, msg.point.y, msg.point.z = (float(v) for v in point)
         self.clicked_pub.publish(msg)
         return self._acknowledged(msg.header.stamp)

@@ -16,7 +16,8 @@ Topics (relative names; everything published latched, once per change, in ``~fra
   (PointCloud2, what the last step found: the table's inliers, the points above it, or the can
   model at the estimate), ``can_pose`` (geometry_msgs/PoseStamped: origin at the centre of the
   can's base, z along its axis), ``can_marker`` (visualization_msgs/Marker, a CYLINDER); after
-  mode 4 also ``can_poses`` (geometry_msgs/PoseArray) and ``can_markers`` (MarkerArray), and with
+  mode 4 also ``can_poses`` (geometry_msgs/PoseArray) and ``can_markers`` (MarkerArray: a DELETEALL,
+  then one CYLINDER per can), published empty when the search finds none; and with
   ``~target_frame`` set, ``can_pose_target`` (the pose in that frame, through tf2); and
   ``selected_patch`` (PointCloud2, the latest selection as stored, its header's stamp copied from
   the selection's, empty when it was rejected: an acknowledgement a script can wait for before
@@ -30,7 +31,9 @@ Private params (logged at start-up): ``~pcd_file`` (default the package's data/t
 relative to the working directory), ``~frame_id`` ("world": the frame the cloud is published in,
 i.e. the sensor frame as rviz knows it), ``~z_eps`` (0.01 m), ``~z_threshold`` (0.01 m),
 ``~can_radius`` (0.033 m), ``~can_height`` (0.122 m), ``~patch_radius`` (0.03 m), ``~r_eps``
-(0.01 m), ``~max_iterations`` (50), ``~fit_margin`` (0.02 m), ``~target_frame`` ("" = none).
+(0.01 m), ``~max_iterations`` (50), ``~fit_margin`` (0.02 m), ``~target_frame`` ("" = none),
+``~up_frame`` ("" = none: mode 4 takes the table's "up" from this frame's +z axis, looked up
+through tf2 in ``~frame_id`` at each call; no transform, no search).
 """
 import dataclasses
 import os
@@ -70,12 +73,14 @@ def package_path(*parts):
 
 @dataclasses.dataclass(frozen=True)
 class FindCanConfig:
-    """The effective configuration of find_can: the scene, frames, the patch radius of a clicked
-    point (m) and the pipeline's FinderConfig."""
+    """The effective configuration of find_can: the scene, frames (up_frame: mode 4's up prior is
+    its +z axis; "" = no prior), the patch radius of a clicked point (m) and the pipeline's
+    FinderConfig."""
 
     pcd_file: str
     frame_id: str = "world"
     target_frame: str = ""
+    up_frame: str = ""
     patch_radius: float = 0.03
     finder: FinderConfig = FinderConfig()
 
@@ -95,6 +100,7 @@ class FindCanConfig:
             config = cls(pcd_file=os.path.abspath(os.path.expanduser(pcd_file)),
                          frame_id=str(get_param("~frame_id", cls.frame_id)).strip().lstrip("/"),
                          target_frame=str(get_param("~target_frame", cls.target_frame) or "").strip().lstrip("/"),
+                         up_frame=str(get_param("~up_frame", cls.up_frame) or "").strip().lstrip("/"),
                          patch_radius=float(get_param("~patch_radius", cls.patch_radius)), finder=finder)
         except (TypeError, ValueError) as e:
             raise PerceptionError(f"bad parameter value: {e}") from None
@@ -109,6 +115,7 @@ class FindCanConfig:
         """One line: every effective value, for the start-up log."""
         f = self.finder
         return (f"pcd_file={self.pcd_file} frame_id={self.frame_id} target_frame={self.target_frame or '(none)'} "
+                f"up_frame={self.up_frame or '(none)'} "
                 f"z_eps={f.z_eps} m z_threshold={f.z_threshold} m can_radius={f.can_radius} m "
                 f"can_height={f.can_height} m patch_radius={self.patch_radius} m r_eps={f.r_eps} m "
                 f"max_iterations={f.max_iterations} fit_margin={f.fit_margin} m")
@@ -145,6 +152,17 @@ def matrix_from_transform(translation, rotation_xyzw):
                  [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]]
     T[:3, 3] = translation
     return T
+
+
+def up_vector(rotation_xyzw):
+    """The +z axis of a frame A expressed in a frame B, from the rotation (x, y, z, w) of the
+    transform that takes A's coordinates into B's (tf2's lookup_transform(target_frame=B,
+    source_frame=A)): unit float64 (3,). With A a robot's base_link or world, that is "up" in B.
+    Raises PerceptionError for a quaternion that is not 4 finite numbers or is zero."""
+    q = np.asarray(rotation_xyzw, dtype=float)
+    if q.shape != (4,) or not np.isfinite(q).all() or not np.linalg.norm(q) > 1e-9:
+        raise PerceptionError(f"a rotation must be a non-zero quaternion (x, y, z, w), got {rotation_xyzw!r}")
+    return matrix_from_transform((0.0, 0.0, 0.0), q)[:3, 2]
 
 
 def pose_message(T, frame_id, stamp=None):
@@ -241,22 +259,45 @@ class FindCanNode:
 
     # --- frames ---
 
+    def _lookup_into_scene(self, frame_id, timeout):
+        """The latest tf2 transform (geometry_msgs/Transform) from `frame_id` into ~frame_id, or
+        None with tf2's reason when it has none within `timeout` (s)."""
+        import tf2_ros
+
+        try:
+            return self.tf_buffer.lookup_transform(self.config.frame_id, frame_id, self._rospy.Time(0),
+                                                   self._rospy.Duration(timeout)).transform, None
+        except (tf2_ros.LookupException, tf2_ros.ConnectivityException, tf2_ros.ExtrapolationException) as e:
+            return None, str(e)
+
     def _to_scene_frame(self, frame_id, what):
         """4x4 from `frame_id` into ~frame_id (identity when they match or frame_id is empty);
         raises PerceptionError when tf2 cannot give it."""
         frame_id = (frame_id or "").lstrip("/")
         if not frame_id or frame_id == self.config.frame_id:
             return None
-        import tf2_ros
-
-        try:
-            tf = self.tf_buffer.lookup_transform(self.config.frame_id, frame_id, self._rospy.Time(0),
-                                                 self._rospy.Duration(0.2))
-        except (tf2_ros.LookupException, tf2_ros.ConnectivityException, tf2_ros.ExtrapolationException) as e:
+        tf, reason = self._lookup_into_scene(frame_id, 0.2)
+        if tf is None:
             raise PerceptionError(f"{what} is in frame '{frame_id}', not '{self.config.frame_id}', and tf2 has no "
-                                  f"transform between them ({e}); set rviz's fixed frame to '{self.config.frame_id}'")
-        t, q = tf.transform.translation, tf.transform.rotation
+                                  f"transform between them ({reason}); set rviz's fixed frame to "
+                                  f"'{self.config.frame_id}'")
+        t, q = tf.translation, tf.rotation
         return matrix_from_transform((t.x, t.y, t.z), (q.x, q.y, q.z, q.w))
+
+    def _up_prior(self):
+        """Mode 4's up prior: the +z axis of ~up_frame in ~frame_id, looked up through tf2 now
+        (unit (3,)); None without ~up_frame. Raises PerceptionError when tf2 has no transform,
+        so the search never runs on a guessed "up"."""
+        up_frame = self.config.up_frame
+        if not up_frame:
+            return None
+        tf, reason = self._lookup_into_scene(up_frame, 0.5)
+        if tf is None:
+            raise PerceptionError(f"no up prior: tf2 has no transform from ~up_frame '{up_frame}' to "
+                                  f"'{self.config.frame_id}' ({reason}); publish it (e.g. a static transform) "
+                                  "or clear ~up_frame to search without a prior")
+        q = tf.rotation
+        return up_vector((q.x, q.y, q.z, q.w))
 
     # --- callbacks ---
 
@@ -319,11 +360,20 @@ class FindCanNode:
 
         with self.lock:
             try:
-                result = self.finder.process(request.mode)
-                message = self._publish(result)
+                up = self._up_prior() if request.mode == Mode.FIND_CAN_AUTO else None
             except PerceptionError as e:
-                self._rospy.logwarn("find_can: mode %s failed: %s", request.mode, e)
+                self._rospy.logerr("find_can: mode %s not run: %s", request.mode, e)
                 return ProcessModeResponse(success=False, message=str(e))
+            prior = "" if up is None else "; up prior ({:.3f}, {:.3f}, {:.3f}) (+z of {})".format(
+                *(up + 0.0), self.config.up_frame)  # + 0.0: no "-0.000"
+            try:
+                result = self.finder.process(request.mode, up=up)
+                message = self._publish(result) + prior
+            except PerceptionError as e:
+                if request.mode == Mode.FIND_CAN_AUTO:  # the search ran and found no can: say so on can_poses
+                    self._publish_all_cans((), self.config.frame_id, self._rospy.Time.now())
+                self._rospy.logwarn("find_can: mode %s failed: %s%s", request.mode, e, prior)
+                return ProcessModeResponse(success=False, message=f"{e}{prior}")
             self._rospy.loginfo("find_can: mode %d: %s", request.mode, message)
             return ProcessModeResponse(success=True, message=message)
 
@@ -352,7 +402,8 @@ class FindCanNode:
         return message
 
     def _publish_all_cans(self, cans, frame, stamp):
-        """Mode 4's can_poses (PoseArray) and can_markers (MarkerArray: one cylinder each, the old ones deleted)."""
+        """Mode 4's can_poses (PoseArray) and can_markers (MarkerArray: a DELETEALL, so no marker of
+        an earlier search stays, then one cylinder per can); both empty of cans when none was found."""
         from geometry_msgs.msg import PoseArray
         from visualization_msgs.msg import Marker, MarkerArray
 

@@ -14,9 +14,10 @@ import roslib.packages
 import rosnode
 import rospy
 import rostest
+from find_can_helpers import send_static_transforms
 
 from example_pcl.demo import CAN_RECT, TABLE_RECT, FindCanClient, pose_error
-from example_pcl.find_can_node import matrix_from_transform, quaternion_from_matrix
+from example_pcl.find_can_node import matrix_from_transform
 from example_pcl.pcd import read_pcd
 from example_pcl.select_patch import select_points
 
@@ -31,18 +32,12 @@ class Errors(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
         import tf2_ros
-        from geometry_msgs.msg import TransformStamped
 
         cls.xyz = np.ascontiguousarray(read_pcd(str(DATA / "test_pcd.pcd")).xyz)
         cls.truth = json.loads((DATA / "test_pcd.json").read_text())["cans"][0]
         cls.client = FindCanClient()
-        tf = TransformStamped()
-        tf.header.stamp, tf.header.frame_id, tf.child_frame_id = rospy.Time.now(), "camera_link", "world"
-        t, q = tf.transform.translation, tf.transform.rotation
-        t.x, t.y, t.z = CAMERA_FROM_WORLD[:3, 3]
-        q.x, q.y, q.z, q.w = quaternion_from_matrix(CAMERA_FROM_WORLD[:3, :3])
         cls.broadcaster = tf2_ros.StaticTransformBroadcaster()
-        cls.broadcaster.sendTransform(tf)
+        send_static_transforms(cls.broadcaster, {("camera_link", "world"): CAMERA_FROM_WORLD})
 
     def fails(self, mode, *fragments):
         ok, message = self.client.call(mode)

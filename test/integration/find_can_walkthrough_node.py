@@ -4,16 +4,12 @@ against the scenes' ground truth.
 
 The bundled scene is served by the find_can of find_can.launch (started by the .test file). The
 generated scenes are written to a temporary directory in setUpClass, and each is loaded by its own
-find_can, started here as a subprocess in a namespace of its own (``__ns:=/scene_N``) with
-``_pcd_file`` pointing at it: a node loads one scene, so a scene sweep needs a node per scene, and
-only this test node knows the files' paths before they exist.
+find_can, started here in a namespace of its own (``/scene_N``, find_can_helpers.find_can_node).
 """
 import json
 import os
 import pathlib
 import shutil
-import signal
-import subprocess
 import sys
 import tempfile
 import unittest
@@ -22,13 +18,13 @@ import numpy as np
 import roslib.packages
 import rospy
 import rostest
+from find_can_helpers import PKG, find_can_node, pixel_rect, send_static_transforms, table_rect
 
 from example_pcl import scene as sc
 from example_pcl.demo import FindCanClient, pose_error, walkthrough
 from example_pcl.find_can_node import matrix_from_transform
 from example_pcl.pcd import read_pcd, write_cloud
 
-PKG = "example_pcl"
 DATA = pathlib.Path(roslib.packages.get_pkg_dir(PKG)) / "data"
 
 # (distance m, tilt rad, cans as (x, y) in the table frame, index of the can to find, target_frame)
@@ -40,23 +36,6 @@ SCENES = [
 # base_link from world (the sensor frame as find_can publishes it): a robot's base 0.8 m behind
 # and 0.5 m below a sensor looking down, as a static transform the test node broadcasts.
 BASE_FROM_WORLD = matrix_from_transform((0.2, -0.1, 0.8), (0.5, -0.5, 0.5, -0.5))
-
-
-def pixel_rect(labels, label, qv=0.5, qu=0.5, half=4):
-    """[u0, v0, u1, v1] around quantiles of the pixels of a label, all pixels of that label."""
-    vs, us = np.nonzero(labels == label)
-    v, u = int(np.quantile(vs, qv)), int(np.quantile(us, qu))
-    assert (labels[v - half:v + half + 1, u - half:u + half + 1] == label).all(), f"no clean patch of label {label}"
-    return (u - half, v - half, u + half, v + half)
-
-
-def table_rect(labels):
-    for qv, qu in ((0.8, 0.2), (0.8, 0.8), (0.5, 0.15)):
-        try:
-            return pixel_rect(labels, sc.LABEL_TABLE, qv, qu, half=6)
-        except AssertionError:
-            continue
-    raise AssertionError("no table patch")
 
 
 class Walkthrough(unittest.TestCase):
@@ -72,17 +51,9 @@ class Walkthrough(unittest.TestCase):
             write_cloud(path, scene.xyz, rgb=scene.rgb)
             cls.scenes.append((path, scene))
         import tf2_ros
-        from geometry_msgs.msg import TransformStamped
 
-        from example_pcl.find_can_node import quaternion_from_matrix
-
-        tf = TransformStamped()
-        tf.header.stamp, tf.header.frame_id, tf.child_frame_id = rospy.Time.now(), "base_link", "world"
-        t, q = tf.transform.translation, tf.transform.rotation
-        t.x, t.y, t.z = BASE_FROM_WORLD[:3, 3]
-        q.x, q.y, q.z, q.w = quaternion_from_matrix(BASE_FROM_WORLD[:3, :3])
         cls.broadcaster = tf2_ros.StaticTransformBroadcaster()
-        cls.broadcaster.sendTransform(tf)
+        send_static_transforms(cls.broadcaster, {("base_link", "world"): BASE_FROM_WORLD})
 
     @classmethod
     def tearDownClass(cls):
@@ -119,12 +90,8 @@ class Walkthrough(unittest.TestCase):
 
         for i, ((path, scene), (_, _, _, target, target_frame)) in enumerate(zip(self.scenes, SCENES)):
             ns = f"/scene_{i}"
-            node = roslib.packages.find_node(PKG, "find_can")[0]
-            args = [sys.executable, node, f"__ns:={ns}", "__name:=find_can", f"_pcd_file:={path}"]
-            if target_frame:
-                args.append(f"_target_frame:={target_frame}")
-            proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-            try:
+            params = {"target_frame": target_frame} if target_frame else {}
+            with find_can_node(ns, path, os.path.join(self.tmp, f"scene_{i}.log"), **params):
                 client = FindCanClient(ns)
                 messages = []
                 pose, _, _ = walkthrough(client, scene.xyz, table_rect=table_rect(scene.labels),
@@ -144,13 +111,6 @@ class Walkthrough(unittest.TestCase):
                     got = matrix_from_transform((p.x, p.y, p.z), (q.x, q.y, q.z, q.w))
                     np.testing.assert_allclose(got, expected, atol=1e-6)
                     self.assertIn(f"in {target_frame}: (", messages[-1])
-            finally:
-                proc.send_signal(signal.SIGINT)
-                try:
-                    proc.wait(15)
-                except subprocess.TimeoutExpired:
-                    proc.kill()
-                    proc.wait()
 
 
 if __name__ == "__main__":

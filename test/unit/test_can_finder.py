@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from example_pcl import scene as sc
+from example_pcl.auto_finder import AutoConfig
 from example_pcl.can_finder import CanFinder, FinderConfig, Mode
 from example_pcl.errors import PerceptionError
 
@@ -344,3 +345,29 @@ def test_modes_1_to_3_continue_from_mode_4():
     f.process(2)
     fit = f.process(3)
     assert np.linalg.norm(fit.can.base_center - reference[3].can.base_center) < 1e-4
+
+
+def test_mode_4_up_prior_replaces_the_configured_one():
+    """process(4, up=...) searches only planes near that up: the table's normal (any length) gives
+    the cans; the camera's x axis, parallel to the table (the camera does not roll), leaves no
+    plane to find, whether it comes from the call or from config.auto.up."""
+    scene = make_scene(1.0, 0.6, second_can=(0.12, 0.08))
+    normal = np.asarray(scene.truth["table"]["normal"])
+    sideways = (1.0, 0.0, 0.0)
+    f = CanFinder(scene.xyz, FinderConfig(auto=AutoConfig(up=sideways)))
+    with pytest.raises(PerceptionError, match="no plane within"):
+        f.process(4)
+    result = f.process(4, up=3.0 * normal)
+    assert len(result.cans) == 2
+    assert abs(f.plane.normal @ normal) > np.cos(np.radians(0.5))
+    with pytest.raises(PerceptionError, match="no plane within"):
+        CanFinder(scene.xyz).process(4, up=sideways)
+    with pytest.raises(PerceptionError, match="up must be a non-zero vector"):
+        CanFinder(scene.xyz).process(4, up=(0.0, 0.0, 0.0))
+
+
+def test_mode_4_no_can_names_what_each_object_failed():
+    """Mode 4 on a table with only a box says there is no can and why the box is not one."""
+    empty = sc.generate_scene(sc.SceneSpec(cans=[], boxes=[(0.0, 0.0, 0.1, 0.06, 0.12)], seed=2))
+    with pytest.raises(PerceptionError, match=r"none a can; object 1 \(\d+ points at \(.*\) m\): \w"):
+        CanFinder(empty.xyz).process(4)

@@ -1,0 +1,96 @@
+"""Helpers of the find_can rostest nodes (imported from beside them): a find_can per generated scene,
+process_mode calls without a client, static transforms, pixel patches of a scene's labels.
+
+rospy must be initialised by the test node before any of these talk to the graph.
+"""
+import contextlib
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import roslib.packages
+import rospy
+
+from example_pcl import scene as sc
+from example_pcl.find_can_node import quaternion_from_matrix
+
+PKG = "example_pcl"
+
+
+@contextlib.contextmanager
+def find_can_node(ns, pcd_file, log_path, **params):
+    """A find_can loading `pcd_file`, run as a subprocess in namespace `ns` (``__ns:=ns``) with the
+    private params given (``up_frame="base_link"`` -> ``_up_frame:=base_link``), its output in
+    `log_path`; stopped with SIGINT (killed after 15 s) on leaving. A node loads one scene, so a
+    test of several scenes needs a node per scene, and only the test node knows their paths."""
+    node = roslib.packages.find_node(PKG, "find_can")[0]
+    args = [sys.executable, node, f"__ns:={ns}", "__name:=find_can", f"_pcd_file:={pcd_file}"]
+    args += [f"_{name}:={value}" for name, value in params.items()]
+    with open(log_path, "w") as log:
+        proc = subprocess.Popen(args, stdout=log, stderr=subprocess.STDOUT)
+    try:
+        yield proc
+    finally:
+        proc.send_signal(signal.SIGINT)
+        try:
+            proc.wait(15)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+
+
+def call_mode(ns, mode, timeout=30.0):
+    """process_mode(mode) of the find_can in `ns` ("" = here), subscribing to nothing: (success, message)."""
+    from example_pcl.srv import ProcessMode
+
+    name = (ns.rstrip("/") + "/process_mode") if ns else "process_mode"
+    rospy.wait_for_service(name, timeout=timeout)
+    response = rospy.ServiceProxy(name, ProcessMode)(mode)
+    return response.success, response.message
+
+
+def call_mode_until(ns, mode, done, timeout=15.0):
+    """Calls process_mode(mode) until done(success, message) holds, for what the node learns
+    asynchronously (a transform just sent); returns the last (success, message)."""
+    deadline = time.monotonic() + timeout
+    while True:
+        answer = call_mode(ns, mode)
+        if done(*answer) or time.monotonic() > deadline:
+            return answer
+        time.sleep(0.2)
+
+
+def send_static_transforms(broadcaster, transforms):
+    """Sends {(parent, child): 4x4 T_parent_from_child} on /tf_static in one message: the latched
+    topic holds only the last message a process sent, so every frame goes in each one."""
+    from geometry_msgs.msg import TransformStamped
+
+    messages = []
+    for (parent, child), T in transforms.items():
+        tf = TransformStamped()
+        tf.header.stamp, tf.header.frame_id, tf.child_frame_id = rospy.Time.now(), parent, child
+        t, q = tf.transform.translation, tf.transform.rotation
+        t.x, t.y, t.z = (float(v) for v in T[:3, 3])
+        q.x, q.y, q.z, q.w = (float(v) for v in quaternion_from_matrix(T[:3, :3]))
+        messages.append(tf)
+    broadcaster.sendTransform(messages)
+
+
+def pixel_rect(labels, label, qv=0.5, qu=0.5, half=4):
+    """[u0, v0, u1, v1] around quantiles of the pixels of a label, all pixels of that label."""
+    vs, us = np.nonzero(labels == label)
+    v, u = int(np.quantile(vs, qv)), int(np.quantile(us, qu))
+    assert (labels[v - half:v + half + 1, u - half:u + half + 1] == label).all(), f"no clean patch of label {label}"
+    return (u - half, v - half, u + half, v + half)
+
+
+def table_rect(labels):
+    """A pixel rectangle that sees only the table top, away from the objects."""
+    for qv, qu in ((0.8, 0.2), (0.8, 0.8), (0.5, 0.15)):
+        try:
+            return pixel_rect(labels, sc.LABEL_TABLE, qv, qu, half=6)
+        except AssertionError:
+            continue
+    raise AssertionError("no table patch")
