@@ -24,6 +24,9 @@ import numpy as np
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 from common import PROJECT, machine_line, table, write_readme_section  # noqa: E402
 
+sys.path.insert(0, str(PROJECT / "tools"))
+from netns_graph import stop_process  # noqa: E402
+
 from example_pcl import scene as sc  # noqa: E402
 from example_pcl.can_finder import CanFinder, Mode  # noqa: E402
 
@@ -92,6 +95,7 @@ def service_round_trips(repeats):
     started = []
     try:
         started.append(subprocess.Popen(["roscore", "-p", str(port)], env=env, stdout=subprocess.DEVNULL,
+                                        start_new_session=True,
                                         stderr=subprocess.DEVNULL))
         import rosgraph
 
@@ -104,6 +108,7 @@ def service_round_trips(repeats):
 
         node = roslib.packages.find_node("example_pcl", "find_can")[0]
         started.append(subprocess.Popen([sys.executable, node], env=env, stdout=subprocess.DEVNULL,
+                                        start_new_session=True,
                                         stderr=subprocess.DEVNULL))
         import rospy
 
@@ -130,12 +135,7 @@ def service_round_trips(repeats):
         return {m: statistics.median(t) for m, t in per_mode.items()}
     finally:
         for proc in reversed(started):
-            proc.send_signal(signal.SIGINT)
-            try:
-                proc.wait(15)
-            except subprocess.TimeoutExpired:
-                proc.kill()
-                proc.wait()
+            stop_process(proc, signal.SIGINT, timeout=15)
 
 
 def main(argv=None):

@@ -4,6 +4,7 @@ process_mode calls without a client, static transforms, pixel patches of a scene
 rospy must be initialised by the test node before any of these talk to the graph.
 """
 import contextlib
+import pathlib
 import signal
 import subprocess
 import sys
@@ -15,6 +16,9 @@ import rospy
 
 from example_pcl import scene as sc
 from example_pcl.find_can_node import quaternion_from_matrix
+
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[2] / "tools"))
+from netns_graph import stop_process  # noqa: E402
 
 PKG = "example_pcl"
 
@@ -29,16 +33,11 @@ def find_can_node(ns, pcd_file, log_path, **params):
     args = [sys.executable, node, f"__ns:={ns}", "__name:=find_can", f"_pcd_file:={pcd_file}"]
     args += [f"_{name}:={value}" for name, value in params.items()]
     with open(log_path, "w") as log:
-        proc = subprocess.Popen(args, stdout=log, stderr=subprocess.STDOUT)
+        proc = subprocess.Popen(args, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
     try:
         yield proc
     finally:
-        proc.send_signal(signal.SIGINT)
-        try:
-            proc.wait(15)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
+        stop_process(proc, signal.SIGINT, timeout=15)
 
 
 def call_mode(ns, mode, timeout=30.0):
