@@ -67,8 +67,10 @@ class AutoConfig:
     plane_distance: RANSAC inlier distance; max_planes: planes searched at most;
     min_plane_fraction: a plane needs this fraction of the subsampled finite points;
     up: optional (x, y, z) "up" in the sensor frame, then only planes whose normal is within
-    max_tilt of it count; refine_step (px), refine_band: the least-squares refinement uses every
-    refine_step-th pixel within refine_band of the RANSAC plane; support_step (px),
+    max_tilt of it count; refine_step (px), refine_band, refine_iterations: the least-squares
+    refinement uses every refine_step-th pixel within refine_band of the plane, up to
+    refine_iterations passes (it stops once the plane no longer moves: a RANSAC plane a degree
+    off, as on a grazing view, needs more than one); support_step (px),
     min_support: a plane holds objects when at least min_support of every support_step-th
     pixel stand on it.
 
@@ -98,6 +100,7 @@ class AutoConfig:
     max_tilt: float = 0.35
     refine_step: int = 3
     refine_band: float = 0.01
+    refine_iterations: int = 3
     support_step: int = 4
     min_support: int = 10
 
@@ -130,8 +133,8 @@ class AutoConfig:
 
     def validate(self):
         """Raises PerceptionError naming the first value that makes no sense."""
-        positive = ("ransac_step", "plane_distance", "max_planes", "refine_step", "refine_band", "max_height",
-                    "cluster_distance", "min_cluster_points", "max_fit_points", "r_eps", "min_radius",
+        positive = ("ransac_step", "plane_distance", "max_planes", "refine_step", "refine_band", "refine_iterations",
+                    "max_height", "cluster_distance", "min_cluster_points", "max_fit_points", "r_eps", "min_radius",
                     "max_radius", "shape_bins", "min_fit_points")
         for name in positive:
             if not getattr(self, name) > 0:
@@ -299,7 +302,7 @@ def find_support_plane(xyz, viewpoint=(0.0, 0.0, 0.0), config=AutoConfig()):
     best = max(supported, key=lambda c: c[1]) if supported else max(candidates, key=lambda c: c[0].n_points)
     r = int(config.refine_step)
     dense = pts[::r, ::r] if pts.ndim == 3 else pts[::r]
-    plane, T, _ = g.refine_plane(dense, best[0], config.refine_band, viewpoint, iterations=1)
+    plane, T, _ = g.refine_plane(dense, best[0], config.refine_band, viewpoint, iterations=config.refine_iterations)
     return plane, T, candidates
 
 

@@ -165,6 +165,40 @@ def test_up_prior_restricts_the_table():
     assert result.cans == []
 
 
+# A grazing view (the camera 0.2 m above the table, 0.2 rad down) of two cans in front of a "wall":
+# a box 0.5 m wide and 0.4 m tall whose face, square to the camera, is the largest plane in view.
+WALL_SCENE = sc.SceneSpec(camera_distance=1.0, tilt=0.2, cans=[(0.0, 0.0, 0.033, 0.122), (0.12, -0.05, 0.04, 0.1)],
+                          boxes=[(0.0, 0.25, 0.5, 0.05, 0.4)], seed=7)
+
+
+def _plane_error_deg(result, truth):
+    return float(np.degrees(np.arccos(min(1.0, abs(result.table.normal @ np.asarray(truth["table"]["normal"]))))))
+
+
+def test_up_prior_keeps_a_wall_from_being_the_table():
+    """Without a prior the wall's face wins the table search on this scene; with the table's up it
+    is the table, and both cans come out within 1 mm."""
+    scene = sc.generate_scene(WALL_SCENE)
+    up = tuple(scene.truth["table"]["normal"])
+    unguided = af.find_cans(scene.xyz)
+    assert _plane_error_deg(unguided, scene.truth) > 45 and unguided.cans == []
+    guided = af.find_cans(scene.xyz, config=af.AutoConfig(up=up))
+    assert _plane_error_deg(guided, scene.truth) < 0.25
+    assert len(guided.cans) == 2
+    for can in guided.cans:
+        assert min(np.linalg.norm(can.base_center - np.asarray(t["base_center"])) for t in scene.truth["cans"]) < 1e-3
+
+
+def test_table_refinement_runs_until_the_plane_stops_moving():
+    """On the grazing view one least-squares pass leaves the RANSAC plane's tilt partly in; the
+    default passes take it out (0.29 -> 0.19 deg measured)."""
+    scene = sc.generate_scene(WALL_SCENE)
+    up = tuple(scene.truth["table"]["normal"])
+    one = af.find_cans(scene.xyz, config=af.AutoConfig(up=up, refine_iterations=1))
+    default = af.find_cans(scene.xyz, config=af.AutoConfig(up=up))
+    assert _plane_error_deg(default, scene.truth) < _plane_error_deg(one, scene.truth) - 0.05
+
+
 def test_unorganized_cloud_uses_euclidean_clusters():
     """An (N, 3) cloud (NaN dropped) gives the same can as the organized one, by PCL's clusters."""
     scene = sc.generate_scene(SCENES["one soda can, 1 m"])
