@@ -8,7 +8,9 @@ each is loaded by its own find_can in a namespace (find_can_helpers.find_can_nod
 
 - ``/tilted``: three cans (radii 33, 25 and 45 mm) and a box, the camera pitched 0.5 rad down, so
   "up" is none of the camera's axes; ``~frame_id`` tilted_camera, ``~up_frame`` tilted_base;
-- ``/empty``: a table with only a box; no ``~up_frame``.
+- ``/empty``: a table with only a box; no ``~up_frame``;
+- ``/wall`` and ``/wall_up``: a grazing view of two cans before a box whose face is the largest
+  plane in view, without and with ``~up_frame`` (wall_base, the table's frame).
 
 The tests run in the order of their names, each from the state the previous one left: the
 tilted scene's up transform is first missing, then sent, then changed and restored.
@@ -43,6 +45,10 @@ TILTED = sc.SceneSpec(camera_distance=1.1, tilt=0.5,
                       cans=[(0.0, 0.0, 0.033, 0.122), (-0.15, 0.06, 0.025, 0.10), (0.12, -0.08, 0.045, 0.15)],
                       boxes=[(0.18, 0.05, 0.1, 0.06, 0.12)], seed=5)
 EMPTY = sc.SceneSpec(cans=[], boxes=[(0.0, 0.0, 0.1, 0.06, 0.12)], seed=2)
+# A grazing view of two cans before a "wall" (a box 0.5 m x 0.4 m whose face is the largest plane in
+# view): loaded twice, /wall without a prior, /wall_up with ~up_frame wall_base (the table frame).
+WALL = sc.SceneSpec(camera_distance=1.0, tilt=0.2, cans=[(0.0, 0.0, 0.033, 0.122), (0.12, -0.05, 0.04, 0.1)],
+                    boxes=[(0.0, 0.25, 0.5, 0.05, 0.4)], seed=7)
 WALKED_CAN = 0  # the tilted scene's can the walkthrough registers: the node's ~can_radius, 33 mm
 # A robot's base: its origin on the floor, 0.75 m below the table top and 0.4 m to the right of its
 # centre (table frame +x); z up, x and y along the table's.
@@ -127,7 +133,9 @@ class Auto(unittest.TestCase):
         cls.nodes = ExitStack()
         try:
             for name, spec, params in (("tilted", TILTED, {"frame_id": "tilted_camera", "up_frame": "tilted_base"}),
-                                       ("empty", EMPTY, {})):
+                                       ("empty", EMPTY, {}),
+                                       ("wall", WALL, {}),
+                                       ("wall_up", WALL, {"frame_id": "wall_camera", "up_frame": "wall_base"})):
                 scene = sc.generate_scene(spec)
                 path = os.path.join(cls.tmp, f"{name}.pcd")
                 write_cloud(path, scene.xyz, rgb=scene.rgb)
@@ -138,7 +146,8 @@ class Auto(unittest.TestCase):
             cls.nodes.close()
             raise
         bundled = np.asarray(json.loads((DATA / "test_pcd.json").read_text())["camera_from_table"])
-        cls.transforms = {("base_link", "world"): BASE_FROM_TABLE @ np.linalg.inv(bundled)}
+        cls.transforms = {("base_link", "world"): BASE_FROM_TABLE @ np.linalg.inv(bundled),
+                          ("wall_base", "wall_camera"): sc.camera_pose(WALL)}
         cls.broadcaster = tf2_ros.StaticTransformBroadcaster()
         send_static_transforms(cls.broadcaster, cls.transforms)  # tilted_base -> tilted_camera not yet
 
@@ -340,6 +349,24 @@ class Auto(unittest.TestCase):
         self.assert_alive("/empty")
         self.assertEqual(call_mode("/empty", 4), (False, message))
 
+
+    def test_7_up_prior_keeps_a_wall_from_being_the_table(self):
+        """The grazing view before a wall: without ~up_frame the wall's face wins and mode 4 finds
+        no can; with ~up_frame (its transform sent) the same scene gives both cans within 3 mm."""
+        from geometry_msgs.msg import PoseArray
+
+        ok, message = call_mode("/wall", 4)
+        self.assertFalse(ok, message)
+        ok, message = call_mode("/wall_up", 4)
+        self.assertTrue(ok, message)
+        self.assert_prior(message, self.scenes["wall_up"].truth["table"]["normal"], "wall_base")
+        poses = latest("/wall_up", "can_poses", PoseArray).poses
+        self.assertEqual(len(poses), 2, message)
+        for pose in poses:
+            errors = [can_errors(pose, can) for can in self.scenes["wall_up"].truth["cans"]]
+            centre, axis = min(errors)
+            self.assertLess(centre, 3e-3, errors)
+            self.assertLess(axis, 1.0, errors)
 
 if __name__ == "__main__":
     rospy.init_node("find_can_auto_test", anonymous=True)
