@@ -1,4 +1,5 @@
 """The package builds, installs and runs like a catkin package, on /usr/bin/python3 whatever python3 is first on PATH."""
+import ctypes
 import os
 import pathlib
 import shutil
@@ -88,6 +89,7 @@ def test_fresh_workspace_devel_and_install_spaces(tmp_path, foreign_python):
         rospack find example_pcl
         rosrun example_pcl make_scene {tmp_path}/SPACE.pcd --no-noise --format binary
         {ROS_PYTHON} -c 'import example_pcl._native as n, example_pcl.srv as s; print(n.__file__); print(s.__file__)'
+        echo "rviz plugins: $(rospack plugins --attrib=plugin rviz | grep '^example_pcl ')"
         """)
     for space in ("devel", "install"):
         proc = run_in(ws / space / "setup.bash", check.replace("SPACE", space), env, tmp_path)
@@ -96,6 +98,13 @@ def test_fresh_workspace_devel_and_install_spaces(tmp_path, foreign_python):
         assert (tmp_path / f"{space}.pcd").is_file()
         native_path = next(line for line in lines if "_native" in line)
         assert native_path.startswith(str(ws / space)), native_path
+        # rviz finds the Publish Selection tool through the exported plugin_description.xml, and its
+        # library (linked against rviz's default plugins, where SelectionTool lives) loads.
+        description = pathlib.Path(next(line for line in lines if line.startswith("rviz plugins:")).split()[-1])
+        assert description.is_file(), proc.stdout
+        library = ws / space / "lib" / "libexample_pcl_rviz_tools.so"
+        assert 'path="lib/libexample_pcl_rviz_tools"' in description.read_text()
+        ctypes.CDLL(str(library))
     installed = ws / "install" / "lib" / "example_pcl"
     for script in ("find_can", "pcd_save", "pcd_publisher", "make_scene"):
         if (PROJECT / "scripts" / script).exists():
