@@ -197,6 +197,25 @@ py::dict read_pcd(const std::string& path) {
 // lzfDecompress keeps no state between tokens; it only checks a reference does not reach before
 // the start of its output). Only the compression ratio can change, and only at chunk seams.
 
+// Bytes whose resize() leaves them uninitialised (every byte is written before it is read): a
+// Kinect frame's buffers would otherwise be zeroed, 10 MB a frame, only to be overwritten.
+template <typename T>
+struct UninitializedAllocator : std::allocator<T> {
+  template <typename U>
+  struct rebind {
+    using other = UninitializedAllocator<U>;
+  };
+  template <typename U>
+  void construct(U* p) noexcept {
+    ::new (static_cast<void*>(p)) U;
+  }
+  template <typename U, typename... Args>
+  void construct(U* p, Args&&... args) {
+    ::new (static_cast<void*>(p)) U(std::forward<Args>(args)...);
+  }
+};
+using Bytes = std::vector<std::uint8_t, UninitializedAllocator<std::uint8_t>>;
+
 // One field as the compressed body stores it: its bytes within a point, and how many.
 struct FieldBytes {
   size_t offset, size;
@@ -224,11 +243,11 @@ void gather_field(const std::uint8_t* src, size_t step, size_t size, size_t begi
 // The points (point_step bytes each, fields at their offsets) rearranged field-major, as PCL's
 // compressed body stores them. Blocks of points small enough to stay in cache are read once for
 // all their fields.
-std::vector<std::uint8_t> to_field_major(const std::uint8_t* data, size_t points, size_t point_step,
-                                         const std::vector<FieldBytes>& fields) {
+Bytes to_field_major(const std::uint8_t* data, size_t points, size_t point_step,
+                     const std::vector<FieldBytes>& fields) {
   size_t point_bytes = 0;
   for (const auto& f : fields) point_bytes += f.size;
-  std::vector<std::uint8_t> out(points * point_bytes);
+  Bytes out(points * point_bytes);
   std::vector<std::uint8_t*> planes;
   size_t plane_offset = 0;
   for (const auto& f : fields) {
@@ -251,15 +270,14 @@ size_t lzf_bound(size_t n) { return n + n / 32 + 16; }
 // The compressed body (the two sizes, then the LZF stream) of `body`, compressed in `chunks`
 // pieces on as many threads (0: one per core, none smaller than 256 KiB). Returns the pieces to
 // write in order; `error` says why not when compression fails.
-std::vector<std::vector<std::uint8_t>> compress_body(const std::vector<std::uint8_t>& body, size_t chunks,
-                                                     std::string& error) {
+std::vector<Bytes> compress_body(const Bytes& body, size_t chunks, std::string& error) {
   const size_t n = body.size();
   if (chunks == 0) {
     constexpr size_t kMinChunk = 256 * 1024;
     chunks = std::max<size_t>(1, std::min<size_t>(std::thread::hardware_concurrency(), n / kMinChunk));
   }
   chunks = std::max<size_t>(1, std::min(chunks, std::max<size_t>(n, 1)));
-  std::vector<std::vector<std::uint8_t>> out(chunks + 1);
+  std::vector<Bytes> out(chunks + 1);
   std::vector<size_t> begin(chunks + 1);
   for (size_t k = 0; k <= chunks; ++k) begin[k] = n * k / chunks;  // sizes differ by at most one byte
   for (size_t k = 0; k < chunks; ++k) out[k + 1].resize(lzf_bound(begin[k + 1] - begin[k]));
@@ -325,12 +343,13 @@ void write_pcd(const std::string& path, const py::buffer& data, const py::list& 
                                 std::to_string(static_cast<size_t>(width) * height * point_step));
   if (format != "ascii" && format != "binary" && format != "binary_compressed")
     throw std::invalid_argument("format must be ascii, binary or binary_compressed, got '" + format + "'");
-  if (threads < 0) throw std::invalid_argument("threads must be >= 0 (0 = one per core), got " + std::to_string(threads));
+  if (threads < 0)
+    throw std::invalid_argument("threads must be >= 0 (0 = one per core), got " + std::to_string(threads));
   const Eigen::Vector4f o(origin[0], origin[1], origin[2], 0.f);
   const Eigen::Quaternionf q(orientation[0], orientation[1], orientation[2], orientation[3]);
   const auto* bytes = static_cast<const std::uint8_t*>(buf.ptr);
   const size_t points = static_cast<size_t>(width) * height;
-  std::vector<std::uint8_t> field_major;
+  Bytes field_major;
   if (format == "binary_compressed") {
     std::vector<FieldBytes> kept;
     size_t point_bytes = 0;
