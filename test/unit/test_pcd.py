@@ -317,3 +317,16 @@ def test_reads_a_kinect_frame_pcl_compressed(shared_pcd, tmp_path):
     assert_same_points(frame.points, theirs.points)
     pcd.write_pcd(tmp_path / "ours.pcd", frame.points, fmt="binary_compressed")
     assert_same_points(frame.points, pcd.read_pcd(tmp_path / "ours.pcd").points)
+
+
+@pytest.mark.skipif(not os.path.exists("/dev/full"), reason="no /dev/full")
+@pytest.mark.parametrize("fmt, threads", [("binary", 0), ("binary_compressed", 1), ("binary_compressed", 3)])
+def test_full_disk_is_an_error(fmt, threads):
+    """Every write is checked: on a full disk (/dev/full) the writer raises ENOSPC, never reports success."""
+    from example_pcl import _native
+
+    points = layout("xyz_rgb", 20_000)
+    with pytest.raises(RuntimeError, match="No space left on device"):
+        _native.write_pcd("/dev/full", points.view(np.uint8), conversions.dtype_to_fields(points.dtype),
+                          len(points), 1, points.dtype.itemsize, False, (0.0, 0.0, 0.0), (1.0, 0.0, 0.0, 0.0),
+                          fmt, 9, threads)
