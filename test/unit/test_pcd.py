@@ -296,7 +296,7 @@ def test_pcl_tools_read_our_compressed_files(tmp_path, name, threads):
 @needs_pcl_tools
 @pytest.mark.parametrize("name", LAYOUTS)
 def test_one_thread_is_pcls_file_byte_for_byte(tmp_path, name):
-    """Compressed on one thread, our file is PCL's writeBinaryCompressed file byte for byte (less PCL's zero padding)."""
+    """On one thread our file is PCL's writeBinaryCompressed file byte for byte (less PCL's zero padding)."""
     points = layout(name, 5000)
     pcd.write_pcd(tmp_path / "b.pcd", points, fmt="binary")
     pcl_convert(tmp_path / "b.pcd", tmp_path / "pcl.pcd", 2)
@@ -308,7 +308,7 @@ def test_one_thread_is_pcls_file_byte_for_byte(tmp_path, name):
 
 @needs_pcl_tools
 def test_reads_a_kinect_frame_pcl_compressed(shared_pcd, tmp_path):
-    """A 640x480 frame PCL itself wrote binary_compressed reads organized, NaNs and rgba bit-exact; ours reads the same."""
+    """A 640x480 frame PCL wrote binary_compressed reads organized, NaNs and rgba bit-exact; so does ours."""
     frame = pcd.read_pcd(shared_pcd("frame_20121214T142256.332395.pcd"))
     pcl_convert(shared_pcd("frame_20121214T142256.332395.pcd"), tmp_path / "pcl.pcd", 2)
     theirs = pcd.read_pcd(tmp_path / "pcl.pcd")
