@@ -3,8 +3,8 @@
 The extension (example_pcl._native.read_pcd / write_pcd) calls pcl::PCDReader and
 pcl::PCDWriter on a pcl::PCLPointCloud2, so every field, the organized width x height, is_dense
 and the viewpoint survive exactly as PCL keeps them (binary_compressed bodies are compressed by
-the extension itself, in PCL's layout with PCL's lzfCompress, several times faster than PCL's
-writer and on several threads); this module turns PCL's raw buffer and field
+the extension itself, in PCL's layout with PCL's lzfCompress, in half the time of PCL's writer
+on one core, and on several threads); this module turns PCL's raw buffer and field
 list into a structured array with the dtype primitives of example_pcl.conversions, and makes
 every write atomic (temporary name, fsync, rename).
 """
