@@ -16,6 +16,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <system_error>
 #include <thread>
 #include <utility>
 #include <vector>
@@ -290,7 +291,12 @@ std::vector<Bytes> compress_body(const Bytes& body, size_t chunks, std::string& 
   };
   {
     std::vector<std::thread> threads;
-    for (size_t k = 1; k < chunks; ++k) threads.emplace_back(compress, k);
+    size_t k = 1;
+    try {
+      for (; k < chunks; ++k) threads.emplace_back(compress, k);
+    } catch (const std::system_error&) {  // no more threads to be had: the other chunks on this one
+      for (; k < chunks; ++k) compress(k);
+    }
     compress(0);
     for (auto& t : threads) t.join();
   }

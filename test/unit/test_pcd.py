@@ -2,6 +2,8 @@
 import os
 import shutil
 import subprocess
+import sys
+import tempfile
 
 import numpy as np
 import pytest
@@ -330,3 +332,29 @@ def test_full_disk_is_an_error(fmt, threads):
         _native.write_pcd("/dev/full", points.view(np.uint8), conversions.dtype_to_fields(points.dtype),
                           len(points), 1, points.dtype.itemsize, False, (0.0, 0.0, 0.0), (1.0, 0.0, 0.0, 0.0),
                           fmt, 9, threads)
+
+
+NO_THREADS_PROBE = """
+import sys
+import numpy as np
+from example_pcl import pcd
+points = np.zeros(300_000, [("x", "<f4"), ("y", "<f4"), ("z", "<f4")])
+points["x"] = np.random.default_rng(0).normal(size=points.shape)
+pcd.write_pcd(sys.argv[1], points, threads=4, fsync=False)
+assert (pcd.read_pcd(sys.argv[1]).points.view(np.uint8) == points.view(np.uint8)).all()
+"""
+
+
+@pytest.mark.skipif(os.geteuid() != 0 or not shutil.which("setpriv") or not shutil.which("prlimit"),
+                    reason="running as another user with a process limit needs root, setpriv and prlimit")
+def test_compressed_without_threads_to_be_had():
+    """When no thread can be started (RLIMIT_NPROC), the chunks are compressed on the calling thread."""
+    out = tempfile.mkdtemp(prefix="pcd_no_threads_")
+    try:
+        os.chmod(out, 0o777)
+        proc = subprocess.run(["setpriv", "--reuid=65534", "--regid=65534", "--clear-groups", "prlimit", "--nproc=1",
+                               sys.executable, "-c", NO_THREADS_PROBE, os.path.join(out, "n.pcd")],
+                              env=dict(os.environ, OPENBLAS_NUM_THREADS="1"), capture_output=True, text=True)
+        assert proc.returncode == 0, proc.stderr
+    finally:
+        shutil.rmtree(out, ignore_errors=True)
