@@ -274,6 +274,7 @@ def validate_cloud(cloud, max_points: Optional[int] = None) -> np.ndarray:
     if max_points and points.size > max_points:
         raise PerceptionError(f"cloud of {points.size} points, more than ~max_points {max_points}")
     xyz = xyz_view(points)
-    if not np.isfinite(xyz).any():
+    # z alone first: a third of the work, and enough for any cloud with a measured point.
+    if not (np.isfinite(xyz[..., 2]).any() or np.isfinite(xyz).any()):
         raise PerceptionError("cloud has no finite point (all NaN or inf)")
     return points

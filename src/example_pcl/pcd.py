@@ -2,7 +2,9 @@
 
 The extension (example_pcl._native.read_pcd / write_pcd) calls pcl::PCDReader and
 pcl::PCDWriter on a pcl::PCLPointCloud2, so every field, the organized width x height, is_dense
-and the viewpoint survive exactly as PCL keeps them; this module turns PCL's raw buffer and field
+and the viewpoint survive exactly as PCL keeps them (binary_compressed bodies are compressed by
+the extension itself, in PCL's layout with PCL's lzfCompress, in half the time of PCL's writer
+on one core, and on several threads); this module turns PCL's raw buffer and field
 list into a structured array with the dtype primitives of example_pcl.conversions, and makes
 every write atomic (temporary name, fsync, rename).
 """
@@ -121,14 +123,16 @@ def atomic_path(path: str, fsync: bool = True) -> Iterator[str]:
 
 def write_pcd(path: str, points: np.ndarray, fmt: str = "binary_compressed", is_dense: Optional[bool] = None,
               origin=(0.0, 0.0, 0.0), orientation=(1.0, 0.0, 0.0, 0.0), precision: int = 9,
-              fsync: bool = True) -> None:
-    """Writes a structured array as a PCD v0.7 file with PCL's writer, atomically.
+              fsync: bool = True, threads: int = 0) -> None:
+    """Writes a structured array as a PCD v0.7 file in PCL's format, atomically.
 
     points: structured array of shape (H, W) (organized) or (N,); every named field is written.
     fmt: "ascii", "binary" or "binary_compressed". is_dense defaults to "x, y, z all finite".
     origin (metres) and orientation (w, x, y, z) go to the VIEWPOINT line. precision: significant
     digits of floats in ascii (9 keeps every float32 exact). fsync: flush to the disk before the
-    rename (see atomic_path); the file is atomic either way. Raises PerceptionError for bad arguments, OSError when the file
+    rename (see atomic_path); the file is atomic either way. threads: binary_compressed compresses
+    on this many threads (0 = one per core; small clouds use one); PCL reads the same points
+    whatever the number. Raises PerceptionError for bad arguments, OSError when the file
     cannot be written (nothing is left under ``path`` then).
     """
     if fmt not in FORMATS:
@@ -145,7 +149,7 @@ def write_pcd(path: str, points: np.ndarray, fmt: str = "binary_compressed", is_
         try:
             _native.write_pcd(tmp, data.view(np.uint8).reshape(-1), dtype_to_fields(points.dtype), width, height,
                               points.dtype.itemsize, bool(is_dense), tuple(map(float, origin)),
-                              tuple(map(float, orientation)), fmt, precision)
+                              tuple(map(float, orientation)), fmt, precision, threads)
         except RuntimeError as e:
             reason = str(e).split("': ", 1)[-1]  # the extension names the temporary file
             raise OSError(f"cannot write PCD file '{path}': {reason}") from None

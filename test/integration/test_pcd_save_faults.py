@@ -92,7 +92,9 @@ def test_directory_removed_then_recreated(ros_graph, scene_file, tmp_path):
     ros_graph.rosrun("publisher", "pcd_publisher", f"_file:={scene_file}", "_rate:=5")
     saver = ros_graph.rosrun("saver", "pcd_save", f"_file:={out}/s.pcd", "_count:=0", "_format:=binary")
     assert wait_for(lambda: len(final_files(out)) >= 1, 60), ros_graph.log(saver)
-    subprocess.run(["rm", "-rf", str(out)], check=True)
+    # pcd_save may create its next temporary file between rm's listing and its rmdir ("Directory
+    # not empty"): remove until the directory is gone.
+    assert wait_for(lambda: subprocess.run(["rm", "-rf", str(out)], capture_output=True).returncode == 0, 10)
     assert wait_for(lambda: "carrying on" in ros_graph.log(saver), 30), ros_graph.log(saver)
     assert saver.poll() is None
     out.mkdir()

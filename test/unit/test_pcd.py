@@ -2,6 +2,8 @@
 import os
 import shutil
 import subprocess
+import sys
+import tempfile
 
 import numpy as np
 import pytest
@@ -184,3 +186,175 @@ def test_written_file_mode_follows_umask(tmp_path, rich_points):
     finally:
         os.umask(umask)
     assert (tmp_path / "m.pcd").stat().st_mode & 0o777 == 0o644
+
+
+# ---- binary_compressed: the body is compressed by the extension, in chunks on several threads ----
+
+def layout(name, n):
+    """Points of one of the field layouts the tests and nodes use, ``n`` of them, NaNs included."""
+    rng = np.random.default_rng(n)
+    if name == "xyz":  # milk.pcd
+        fields, step = [("x", 0, 7, 1), ("y", 4, 7, 1), ("z", 8, 7, 1)], 12
+    elif name == "xyz_rgb":  # make_points, pcd_publisher
+        fields, step = [("x", 0, 7, 1), ("y", 4, 7, 1), ("z", 8, 7, 1), ("rgb", 12, 7, 1)], 16
+    elif name == "xyz_rgba_padded":  # a Kinect driver's PointCloud2: x y z _ rgba _ _ _
+        fields, step = [("x", 0, 7, 1), ("y", 4, 7, 1), ("z", 8, 7, 1), ("rgba", 16, 6, 1)], 32
+    elif name == "normals_intensity":  # rich_points: float, uint16
+        fields, step = [("x", 0, 7, 1), ("y", 4, 7, 1), ("z", 8, 7, 1), ("rgb", 12, 7, 1), ("normal_x", 16, 7, 1),
+                        ("normal_y", 20, 7, 1), ("normal_z", 24, 7, 1), ("curvature", 28, 7, 1),
+                        ("intensity", 32, 4, 1)], 36
+    else:  # every size: int8, uint8 x3, int16, float64, and a 33-float descriptor (FPFH-like)
+        fields, step = [("x", 0, 7, 1), ("y", 4, 7, 1), ("z", 8, 7, 1), ("label", 12, 1, 1), ("rgb3", 13, 2, 3),
+                        ("ring", 16, 3, 1), ("time", 24, 8, 1), ("fpfh", 32, 7, 33)], 164
+    points = np.zeros(n, conversions.fields_to_dtype(fields, step))
+    raw = points.view(np.uint8).reshape(n, step)
+    raw[...] = rng.integers(0, 256, raw.shape, dtype=np.uint8)  # every bit pattern, padding included
+    for c in "xyz":
+        points[c] = rng.normal(size=n).astype(np.float32)
+    points["x"][::3] = np.nan
+    return points
+
+
+LAYOUTS = ("xyz", "xyz_rgb", "xyz_rgba_padded", "normals_intensity", "all_sizes")
+
+
+@pytest.mark.parametrize("name", LAYOUTS)
+@pytest.mark.parametrize("n", [1, 2, 3, 31, 1001])
+@pytest.mark.parametrize("threads", [1, 2, 3, 7, 64])
+def test_compressed_round_trip_any_threads(tmp_path, name, n, threads):
+    """Whatever the number of compression chunks (more than bytes too), PCL's reader gets every field bit-exact."""
+    points = layout(name, n)
+    pcd.write_pcd(tmp_path / "c.pcd", points, fmt="binary_compressed", threads=threads)
+    back = pcd.read_pcd(tmp_path / "c.pcd")
+    assert back.format == "binary_compressed" and back.points.shape == (n,)
+    assert_same_points(points, back.points)
+
+
+@pytest.mark.parametrize("shape", [(1, 1), (3, 1), (1, 5), (7, 11), (480, 640)])
+@pytest.mark.parametrize("threads", [0, 1, 3])
+def test_compressed_organized_shapes(tmp_path, shape, threads):
+    """Organized clouds (height > 1) keep height x width; 1-point and 1-row clouds stay what they were."""
+    points = layout("xyz_rgb", shape[0] * shape[1]).reshape(shape if shape[0] > 1 else (shape[1],))
+    pcd.write_pcd(tmp_path / "o.pcd", points, fmt="binary_compressed", threads=threads)
+    back = pcd.read_pcd(tmp_path / "o.pcd")
+    assert back.organized == (shape[0] > 1)
+    assert_same_points(points, back.points)
+
+
+@pytest.mark.parametrize("nbytes", [1, 2, 5, 31, 32, 33, 4097, 300_007])
+@pytest.mark.parametrize("threads", [1, 2, 3, 8])
+def test_compressed_incompressible_data(tmp_path, nbytes, threads):
+    """Random bytes, which LZF makes larger than they were (one control byte per 32), round-trip in any chunking."""
+    points = np.zeros(nbytes, [("x", np.uint8)])
+    points["x"] = np.random.default_rng(nbytes).integers(0, 256, nbytes, dtype=np.uint8)
+    path = tmp_path / "r.pcd"
+    pcd.write_pcd(path, points, fmt="binary_compressed", threads=threads, is_dense=True)
+    assert_same_points(points, pcd.read_pcd(path).points)
+    data = path.read_bytes()
+    body = data.index(b"DATA binary_compressed\n") + len(b"DATA binary_compressed\n")
+    compressed, uncompressed = np.frombuffer(data[body:body + 8], np.uint32)
+    assert uncompressed == nbytes and compressed == len(data) - body - 8
+    assert compressed > nbytes  # the expanded case the output bound must hold
+
+
+@pytest.mark.parametrize("threads", [1, 2, 3])
+def test_compressed_empty_cloud_as_pcl_writes_it(tmp_path, threads):
+    """An empty cloud gets PCL's empty body: both sizes 0."""
+    pcd.write_cloud(tmp_path / "e.pcd", np.zeros((0, 3), np.float32), threads=threads)
+    assert (tmp_path / "e.pcd").read_bytes().endswith(b"DATA binary_compressed\n" + bytes(8))
+    assert pcd.read_pcd(tmp_path / "e.pcd").points.shape == (0,)
+
+
+def test_compressed_threads_checked(tmp_path):
+    """A negative thread count is refused before anything is written."""
+    with pytest.raises(PerceptionError, match="threads"):
+        pcd.write_pcd(tmp_path / "t.pcd", layout("xyz", 3), fmt="binary_compressed", threads=-1)
+    assert list(tmp_path.iterdir()) == []
+
+
+needs_pcl_tools = pytest.mark.skipif(shutil.which("pcl_convert_pcd_ascii_binary") is None,
+                                     reason="pcl-tools not installed")
+
+
+def pcl_convert(src, dst, fmt):
+    """pcl_convert_pcd_ascii_binary: PCL's loadPCDFile then PCDWriter in format 0 ascii, 1 binary, 2 compressed."""
+    proc = subprocess.run(["pcl_convert_pcd_ascii_binary", str(src), str(dst), str(fmt)],
+                          stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    assert proc.returncode == 0 and dst.exists(), proc.stdout
+    return proc.stdout
+
+
+@needs_pcl_tools
+@pytest.mark.parametrize("name", LAYOUTS)
+@pytest.mark.parametrize("threads", [0, 1, 3])
+def test_pcl_tools_read_our_compressed_files(tmp_path, name, threads):
+    """pcl_convert_pcd_ascii_binary loads our chunked compressed files; its binary copy reads back bit-exact."""
+    points = layout(name, 100_003)
+    pcd.write_pcd(tmp_path / "ours.pcd", points, fmt="binary_compressed", threads=threads)
+    assert "100003 points" in pcl_convert(tmp_path / "ours.pcd", tmp_path / "pcl.pcd", 1)
+    assert_same_points(points, pcd.read_pcd(tmp_path / "pcl.pcd").points)
+
+
+@needs_pcl_tools
+@pytest.mark.parametrize("name", LAYOUTS)
+def test_one_thread_is_pcls_file_byte_for_byte(tmp_path, name):
+    """On one thread our file is PCL's writeBinaryCompressed file byte for byte (less PCL's zero padding)."""
+    points = layout(name, 5000)
+    pcd.write_pcd(tmp_path / "b.pcd", points, fmt="binary")
+    pcl_convert(tmp_path / "b.pcd", tmp_path / "pcl.pcd", 2)
+    pcd.write_pcd(tmp_path / "ours.pcd", points, fmt="binary_compressed", threads=1, is_dense=False)
+    ours, theirs = (tmp_path / "ours.pcd").read_bytes(), (tmp_path / "pcl.pcd").read_bytes()
+    assert theirs[:len(ours)] == ours
+    assert theirs[len(ours):].strip(b"\0") == b""  # PCL's mmap writer rounds the file up to a page
+
+
+@needs_pcl_tools
+def test_reads_a_kinect_frame_pcl_compressed(shared_pcd, tmp_path):
+    """A 640x480 frame PCL wrote binary_compressed reads organized, NaNs and rgba bit-exact; so does ours."""
+    frame = pcd.read_pcd(shared_pcd("frame_20121214T142256.332395.pcd"))
+    pcl_convert(shared_pcd("frame_20121214T142256.332395.pcd"), tmp_path / "pcl.pcd", 2)
+    theirs = pcd.read_pcd(tmp_path / "pcl.pcd")
+    assert theirs.format == "binary_compressed" and theirs.points.shape == (480, 640)
+    assert np.isnan(theirs.xyz).any() and "rgba" in theirs.points.dtype.names
+    assert_same_points(frame.points, theirs.points)
+    pcd.write_pcd(tmp_path / "ours.pcd", frame.points, fmt="binary_compressed")
+    assert_same_points(frame.points, pcd.read_pcd(tmp_path / "ours.pcd").points)
+
+
+@pytest.mark.skipif(not os.path.exists("/dev/full"), reason="no /dev/full")
+@pytest.mark.parametrize("fmt, threads", [("binary", 0), ("binary_compressed", 1), ("binary_compressed", 3)])
+def test_full_disk_is_an_error(fmt, threads):
+    """Every write is checked: on a full disk (/dev/full) the writer raises ENOSPC, never reports success."""
+    from example_pcl import _native
+
+    points = layout("xyz_rgb", 20_000)
+    with pytest.raises(RuntimeError, match="No space left on device"):
+        _native.write_pcd("/dev/full", points.view(np.uint8), conversions.dtype_to_fields(points.dtype),
+                          len(points), 1, points.dtype.itemsize, False, (0.0, 0.0, 0.0), (1.0, 0.0, 0.0, 0.0),
+                          fmt, 9, threads)
+
+
+NO_THREADS_PROBE = """
+import sys
+import numpy as np
+from example_pcl import pcd
+points = np.zeros(300_000, [("x", "<f4"), ("y", "<f4"), ("z", "<f4")])
+points["x"] = np.random.default_rng(0).normal(size=points.shape)
+pcd.write_pcd(sys.argv[1], points, threads=4, fsync=False)
+assert (pcd.read_pcd(sys.argv[1]).points.view(np.uint8) == points.view(np.uint8)).all()
+"""
+
+
+@pytest.mark.skipif(os.geteuid() != 0 or not shutil.which("setpriv") or not shutil.which("prlimit"),
+                    reason="running as another user with a process limit needs root, setpriv and prlimit")
+def test_compressed_without_threads_to_be_had():
+    """When no thread can be started (RLIMIT_NPROC), the chunks are compressed on the calling thread."""
+    out = tempfile.mkdtemp(prefix="pcd_no_threads_")
+    try:
+        os.chmod(out, 0o777)
+        proc = subprocess.run(["setpriv", "--reuid=65534", "--regid=65534", "--clear-groups", "prlimit", "--nproc=1",
+                               sys.executable, "-c", NO_THREADS_PROBE, os.path.join(out, "n.pcd")],
+                              env=dict(os.environ, OPENBLAS_NUM_THREADS="1"), capture_output=True, text=True)
+        assert proc.returncode == 0, proc.stderr
+    finally:
+        shutil.rmtree(out, ignore_errors=True)

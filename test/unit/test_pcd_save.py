@@ -1,6 +1,8 @@
 """pcd_save's pure logic, no master: file names, destination check, the write and its sidecar, drops."""
 import json
 import os
+import subprocess
+import sys
 import threading
 import time
 
@@ -323,3 +325,31 @@ def test_continuous_writer_carries_on_after_transient_os_errors(tmp_path):
     writer.stop()
     assert writer.error is None and not writer.done.is_set()
     assert (writer.saved, writer.failed, len(errors)) == (3, 2, 2)
+
+
+FREED_MEMORY_PROBE = """
+import queue, resource, sys, threading
+from example_pcl.pcd_save_node import keep_freed_memory
+assert keep_freed_memory()
+blocks = queue.Queue(maxsize=3)
+def free_them():
+    while blocks.get() is not None:
+        pass
+thread = threading.Thread(target=free_them)
+thread.start()
+for _ in range(5):
+    blocks.put(bytes(bytearray(5 << 20)))
+before = resource.getrusage(resource.RUSAGE_SELF).ru_minflt
+for _ in range(60):
+    blocks.put(bytes(bytearray(5 << 20)))  # made here, freed in the other thread, as rospy's clouds are
+blocks.put(None)
+thread.join()
+print((resource.getrusage(resource.RUSAGE_SELF).ru_minflt - before) / (60 * (5 << 20) / 4096))
+"""
+
+
+def test_keep_freed_memory_reuses_cloud_sized_blocks():
+    """With freed memory kept, 5 MB blocks made in one thread and freed in another fault in under 5% of their pages."""
+    proc = subprocess.run([sys.executable, "-c", FREED_MEMORY_PROBE], capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 0, proc.stderr
+    assert float(proc.stdout) < 0.05
