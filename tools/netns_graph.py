@@ -87,8 +87,10 @@ class NetnsGraph:
         return self
 
     def __exit__(self, *exc):
+        # SIGINT, not SIGKILL: roscore starts rosmaster and rosout in sessions of their own, which
+        # only it stops; killed, it would leave them running.
         for proc in reversed(self.processes):
-            self.stop(proc, signal.SIGKILL, timeout=5)
+            self.stop(proc, signal.SIGINT, timeout=15)
         for ns in [*self.namespaces.values(), self.switch]:
             sh("ip", "netns", "del", ns, check=False)
 

@@ -50,5 +50,7 @@ class RosGraph:
         return proc.log_path.read_text()
 
     def close(self):
+        # SIGINT, not SIGKILL: roscore and roslaunch start their children (rosmaster, rosout, the
+        # nodes) in sessions of their own, which only they stop; killed, they would leave them running.
         for proc in reversed(self.processes):
-            self.stop(proc, signal.SIGKILL, timeout=5)
+            self.stop(proc, signal.SIGINT, timeout=15)
