@@ -215,15 +215,18 @@ def write_sidecar(path: str, metadata: dict) -> None:
             f.write("\n")
 
 
-def save_cloud(path: str, msg, fmt: str, topic: str, publisher: str = "", max_points: int = 0) -> dict:
+def save_cloud(path: str, msg, fmt: str, topic: str, publisher: str = "", max_points: int = 0,
+               points: Optional[np.ndarray] = None) -> dict:
     """Writes a PointCloud2 to a PCD file and its ``<file>.json`` sidecar, both atomically.
 
     Every named field, the organized shape, is_dense and NaN points are kept; ascii uses 9
-    significant digits so float32 values read back exactly. Returns the sidecar's metadata.
+    significant digits so float32 values read back exactly. ``points``: the message's points as
+    :func:`validate_cloud` already returned them (the node validates each cloud as it arrives);
+    without it the message is validated here. Returns the sidecar's metadata.
     Raises PerceptionError for a cloud that cannot be saved, OSError when the disk or directory
     fails (nothing is then left under either final name).
     """
-    points = packed_points(validate_cloud(msg, max_points))
+    points = packed_points(validate_cloud(msg, max_points) if points is None else points)
     write_pcd(path, points, fmt=fmt, is_dense=bool(msg.is_dense), precision=9)
     metadata = cloud_metadata(msg, topic, path, fmt, publisher)
     write_sidecar(sidecar_path(path), metadata)
@@ -368,13 +371,14 @@ class SnapshotWriter:
             thread.start()
         return self
 
-    def submit(self, msg, publisher: str = "") -> None:
-        """Queues a validated cloud; records sequence gaps and counts a discard if the queue was full."""
+    def submit(self, msg, publisher: str = "", points: Optional[np.ndarray] = None) -> None:
+        """Queues a cloud (with its points when already validated, handed to ``save``); records
+        sequence gaps and counts a discard if the queue was full."""
         with self._lock:
             self.drops.observe(msg.header.seq, publisher)
             if self.done.is_set():
                 return
-        discarded = self.queue.put((msg, publisher))
+        discarded = self.queue.put((msg, publisher, points))
         if discarded:
             with self._lock:
                 self.drops.discarded(discarded)
@@ -396,10 +400,10 @@ class SnapshotWriter:
             index = self._take_index()
             if index is None:
                 continue  # enough snapshots are in flight or written; done will be set by them
-            msg, publisher = item
+            msg, publisher, points = item
             path = snapshot_path(self.config.file, index, self.config.count)
             try:
-                metadata = self._save(path, msg, self.config.format, self.topic, publisher)
+                metadata = self._save(path, msg, self.config.format, self.topic, publisher, points=points)
             except PerceptionError as e:
                 with self._lock:
                     self._rejected += 1
@@ -496,13 +500,13 @@ class PcdSaveNode:
 
     def _on_cloud(self, msg) -> None:
         try:
-            validate_cloud(msg, self.config.max_points)
+            points = validate_cloud(msg, self.config.max_points)
         except PerceptionError as e:
             self._on_malformed(e)
             return
         self.last_cloud_at = time.monotonic()
         publisher = (getattr(msg, "_connection_header", None) or {}).get("callerid", "")
-        self.writer.submit(msg, publisher)
+        self.writer.submit(msg, publisher, points)
 
     def _on_malformed(self, error: Exception) -> None:
         self.malformed += 1

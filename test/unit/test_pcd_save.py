@@ -260,7 +260,7 @@ def test_snapshot_writer_counts_queue_discards_when_writes_are_slow(tmp_path):
     """A slow writer never blocks submit: the bounded queue discards the oldest clouds and counts them."""
     release = threading.Event()
 
-    def slow_save(path, msg, fmt, topic, publisher):
+    def slow_save(path, msg, fmt, topic, publisher, points=None):
         release.wait(10)
         return {}
 
@@ -285,7 +285,7 @@ def test_snapshot_writer_skips_rejected_clouds_and_stops_on_os_error(tmp_path):
     rejected = []
     calls = []
 
-    def flaky_save(path, msg, fmt, topic, publisher):
+    def flaky_save(path, msg, fmt, topic, publisher, points=None):
         calls.append(path)
         if len(calls) == 1:
             raise PerceptionError("PCL refused it")
@@ -309,7 +309,7 @@ def test_continuous_writer_carries_on_after_transient_os_errors(tmp_path):
     errors = []
     calls = []
 
-    def full_then_free(path, msg, fmt, topic, publisher):
+    def full_then_free(path, msg, fmt, topic, publisher, points=None):
         calls.append(path)
         if len(calls) in (2, 3):
             raise OSError(28, "No space left on device")
