@@ -13,6 +13,7 @@ import time
 
 import numpy as np
 import yaml
+from graph_helpers import wait_for
 
 TOOLS = ("Xvfb", "xdotool", "xwininfo", "rviz")
 
@@ -53,12 +54,6 @@ def screenshot(display):
     from PIL import ImageGrab
 
     return np.asarray(ImageGrab.grab(xdisplay=display).convert("RGB"))
-
-
-def save_png(image, path):
-    from PIL import Image
-
-    Image.fromarray(image).save(path)
 
 
 class OrbitView:
@@ -114,17 +109,18 @@ class RvizWindow:
 
     def __init__(self, display, title="RViz", timeout=60):
         self.display = display
-        deadline = time.monotonic() + timeout
-        while True:
+        ids = []
+
+        def shown():
+            nonlocal ids
             try:
                 ids = _xdotool(display, "search", "--onlyvisible", "--name", title, timeout=10).split()
-            except subprocess.CalledProcessError:
+            except subprocess.CalledProcessError:  # xdotool: no such window yet
                 ids = []
-            if ids:
-                break
-            if time.monotonic() > deadline:
-                raise TimeoutError(f"no visible window titled '{title}' on {display} after {timeout} s")
-            time.sleep(0.5)
+            return bool(ids)
+
+        if not wait_for(shown, timeout, step=0.5):
+            raise TimeoutError(f"no visible window titled '{title}' on {display} after {timeout} s")
         self.window = ids[0]
 
     def render_panel(self):

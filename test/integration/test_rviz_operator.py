@@ -27,6 +27,7 @@ sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 from graph_helpers import RosGraph, wait_for  # noqa: E402
 from rviz_driver import OrbitView, RvizWindow, Xvfb, missing_tools, near_colour, pixel_mask, saturated  # noqa: E402
 
+from example_pcl.conversions import cloud_to_xyz  # noqa: E402
 from example_pcl.demo import CAN_RECT, TABLE_RECT, pose_error  # noqa: E402
 from example_pcl.pcd import read_pcd  # noqa: E402
 
@@ -72,8 +73,10 @@ class Operator:
     def image(self):
         return self.window.view_image()
 
-    def project(self, points, shape):
-        return self.view.project(points, shape[1], shape[0])
+    def project(self, points):
+        """Pixels (u, v, visible) of the points in the 3-D view as it is now sized."""
+        _, _, width, height = self.window.render_panel()
+        return self.view.project(points, width, height)
 
     def wait_drawn(self, predicate, timeout=60):
         """The view once predicate(image) holds (rviz renders at its own pace under Xvfb)."""
@@ -104,17 +107,24 @@ class Operator:
         time.sleep(1.0)  # the rest of the step's topics (marker, pose) arrive within a frame or two
         return self.image()
 
+    def echo(self, topic, msg_class):
+        """The message a subscriber connecting now gets on a latched topic (`rostopic echo -n 1`)."""
+        import genpy
+
+        out = subprocess.run(["rostopic", "echo", "-n", "1", topic], env=self.graph.env, capture_output=True,
+                             text=True, timeout=30)
+        msg = msg_class()
+        genpy.message.fill_message_args(msg, [yaml.safe_load(out.stdout.split("---")[0])])
+        return msg
+
     def selected_points(self):
         """The last cloud the Publish Selection tool sent (latched on /selected_points), (N, 3) metres."""
-        out = subprocess.run(["rostopic", "echo", "-n", "1", "/selected_points"], env=self.graph.env,
-                             capture_output=True, text=True, timeout=30)
-        fields = yaml.safe_load(out.stdout.split("---")[0])
-        assert fields["header"]["frame_id"] == "world", fields["header"]
-        assert [(f["name"], f["datatype"]) for f in fields["fields"]] == [("x", 7), ("y", 7), ("z", 7)], fields
-        step = fields["point_step"]
-        rows = np.frombuffer(bytes(fields["data"]), dtype=np.uint8).reshape(-1, step)
-        return np.stack([rows[:, f["offset"]:f["offset"] + 4].copy().view(np.float32)[:, 0]
-                         for f in fields["fields"]], axis=1).astype(float)
+        from sensor_msgs.msg import PointCloud2
+
+        msg = self.echo("/selected_points", PointCloud2)
+        assert msg.header.frame_id == "world", msg.header
+        assert [(f.name, f.datatype) for f in msg.fields] == [("x", 7), ("y", 7), ("z", 7)], msg.fields
+        return cloud_to_xyz(msg).reshape(-1, 3).astype(float)
 
     def patch(self, rect):
         """The scene's points in a pixel rectangle (u0, v0, u1, v1) of the organized cloud."""
@@ -125,7 +135,7 @@ class Operator:
     def screen_rect(self, points, shrink=0.25):
         """The rectangle of the view (u0, v0, u1, v1) the points project into, shrunk toward its centre
         so that the drag stays inside the patch."""
-        u, v, visible = self.project(points, self.image().shape)
+        u, v, visible = self.project(points)
         assert visible.all(), "the patch is not in rviz's view"
         u0, u1, v0, v1 = u.min(), u.max(), v.min(), v.max()
         du, dv = shrink * (u1 - u0), shrink * (v1 - v0)
@@ -134,7 +144,7 @@ class Operator:
     def screen_point(self, points):
         """The pixel of the patch's point nearest its centroid (a point that is really there to click)."""
         point = points[np.argmin(np.linalg.norm(points - points.mean(axis=0), axis=1))]
-        u, v, visible = self.project(point[None], self.image().shape)
+        u, v, visible = self.project(point[None])
         assert visible[0]
         return u[0], v[0]
 
@@ -173,15 +183,10 @@ class Operator:
         return answer
 
     def can_pose(self):
-        """The latched can_pose (rostopic echo), as a geometry_msgs/PoseStamped."""
-        import genpy
+        """The latched can_pose, as a geometry_msgs/PoseStamped."""
         from geometry_msgs.msg import PoseStamped
 
-        out = subprocess.run(["rostopic", "echo", "-n", "1", "/can_pose"], env=self.graph.env, capture_output=True,
-                             text=True, timeout=30)
-        msg = PoseStamped()
-        genpy.message.fill_message_args(msg, [yaml.safe_load(out.stdout.split("---")[0])])
-        return msg
+        return self.echo("/can_pose", PoseStamped)
 
 
 @pytest.fixture(scope="module")
@@ -202,7 +207,7 @@ def test_scene_is_drawn_where_it_projects_coloured_by_depth(operator):
     else; their colour runs through the rainbow with depth (z, metres): red near, blue far."""
     image = operator.wait_drawn(lambda im: saturated(im).mean() > 0.2)
     operator.save(image, "1_scene")
-    u, v, visible = operator.project(operator.points, image.shape)
+    u, v, visible = operator.project(operator.points)
     assert visible.mean() > 0.95, "rviz's view should frame the whole scene"
     drawn = saturated(image)
     expected = pixel_mask(u, v, visible, image.shape[:2], grow=2)
@@ -232,7 +237,7 @@ def test_walkthrough_with_the_publish_selection_tool(operator):
     assert len(selected) == n_selected
     nearest = np.array([np.min(np.linalg.norm(operator.points - p, axis=1)) for p in selected])
     assert nearest.max() < 1e-5, f"selected points off the scene by up to {nearest.max() * 1e3:.3f} mm"
-    u, v, _ = operator.project(selected, operator.image().shape)
+    u, v, _ = operator.project(selected)
     u0, v0, u1, v1 = operator.screen_rect(table)
     assert ((u > u0 - 3) & (u < u1 + 3) & (v > v0 - 3) & (v < v1 + 3)).all(), "selected points outside the drag"
     # rviz highlights what it selected in cyan: there, on the table patch.
@@ -246,7 +251,7 @@ def test_walkthrough_with_the_publish_selection_tool(operator):
     plane = near_colour(image, PLANE_COLOUR, 30)
     table_points = operator.points[np.abs(operator.points @ np.array(operator.truth["table"]["normal"])
                                           + operator.truth["table"]["d"]) < 0.01]
-    u, v, visible = operator.project(table_points, image.shape)
+    u, v, visible = operator.project(table_points)
     on_table = pixel_mask(u, v, visible, image.shape[:2], grow=3)
     assert (plane & ~on_table).sum() < 0.02 * plane.sum(), "plane_model drawn off the table"
 
