@@ -115,8 +115,6 @@ void SelectedPointsTool::publish(const std::vector<Ogre::Vector3>& points)
   sensor_msgs::PointCloud2Modifier modifier(cloud);
   modifier.setPointCloud2FieldsByString(1, "xyz");
   modifier.resize(points.size());
-  cloud.height = 1;
-  cloud.width = static_cast<uint32_t>(points.size());
   cloud.is_dense = true;
   sensor_msgs::PointCloud2Iterator<float> x(cloud, "x"), y(cloud, "y"), z(cloud, "z");
   for (const Ogre::Vector3& p : points)
