@@ -1,0 +1,58 @@
+"""The result type of every can finder: :class:`Can`, an upright can on the table, sensor frame.
+
+Both the operator's modes 2-3 (example_pcl.can_finder) and the automatic search
+(example_pcl.auto_finder, mode 4) return it. Pure NumPy; knows nothing of ROS.
+"""
+from dataclasses import dataclass, field
+from typing import Optional
+
+import numpy as np
+
+
+@dataclass(frozen=True, eq=False)
+class Can:
+    """A can found in a cloud. Lengths in metres, angles in radians, sensor frame unless named.
+
+    T_sensor_from_can: 4x4 float64, origin at the centre of the can's base on the table, z up its
+    axis (the table normal), x as the plane frame's; radius, height: of the can (fitted by mode 4,
+    the configured or mode 4's size for modes 2-3); rms_error: RMS radial residual of the side
+    points within r_eps of the circle; arc_coverage: angular span of those points around the
+    axis (0..2 pi; about pi for the visible half); n_points: points the fit looked at (mode 4: its
+    cluster; modes 2-3: the points above the table near the can); n_fit_points: of them, those
+    within r_eps of the circle; center_plane: float64 (2,), the axis (cx, cy) in the plane frame;
+    iterations: of the fit (0 for mode 2's guess and for mode 4, whose fit is not continued);
+    converged: of the fit (True for mode 2's guess, which is not iterated); shape_error (mode 4
+    only, else None): the systematic radial deviation (see auto_finder.shape_error); indices
+    (mode 4 only, else None): int64 indices of its cluster's points into the flattened cloud.
+    """
+
+    T_sensor_from_can: np.ndarray
+    radius: float
+    height: float
+    rms_error: float
+    arc_coverage: float
+    n_points: int
+    n_fit_points: int
+    center_plane: np.ndarray
+    iterations: int = 0
+    converged: bool = True
+    shape_error: Optional[float] = None
+    indices: Optional[np.ndarray] = field(default=None, repr=False)
+
+    @property
+    def base_center(self):
+        """Centre of the can's base, sensor frame (m): float64 (3,)."""
+        return self.T_sensor_from_can[:3, 3].copy()
+
+    @property
+    def axis(self):
+        """Unit axis of the can, up from the table, sensor frame: float64 (3,)."""
+        return self.T_sensor_from_can[:3, 2].copy()
+
+    def to_dict(self):
+        """JSON-able dict of everything but the indices (base_center and axis included)."""
+        return {"base_center": self.base_center.tolist(), "axis": self.axis.tolist(), "radius": self.radius,
+                "height": self.height, "rms_error": self.rms_error, "shape_error": self.shape_error,
+                "arc_coverage": self.arc_coverage, "n_points": self.n_points, "n_fit_points": self.n_fit_points,
+                "center_plane": np.asarray(self.center_plane).tolist(), "iterations": self.iterations,
+                "converged": self.converged, "T_sensor_from_can": self.T_sensor_from_can.tolist()}
