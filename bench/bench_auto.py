@@ -41,7 +41,7 @@ sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 from common import PROJECT, machine_line, median_time, table, write_readme_section  # noqa: E402
 
 from example_pcl import _native, auto_finder, scene as sc  # noqa: E402
-from example_pcl import geometry as g  # noqa: E402
+from example_pcl import transforms  # noqa: E402
 
 MATCH_DISTANCE = 0.02  # m: a found can farther than this from every true can is a false can
 
@@ -55,12 +55,12 @@ def _footprint(obj):
 
 def _in_image(spec, objects):
     """Every object's bounding box projects inside the image with a 10 px margin."""
-    T = g.invert_transform(sc.camera_pose(spec))  # camera_from_table
+    T = transforms.invert(sc.camera_pose(spec))  # camera_from_table
     for obj in objects:
         x, y, half = _footprint(obj)
         top = obj[3] if len(obj) == 4 else obj[4]
         corners = np.array([[x + sx * half, y + sy * half, z] for sx in (-1, 1) for sy in (-1, 1) for z in (0, top)])
-        cam = corners @ T[:3, :3].T + T[:3, 3]
+        cam = transforms.apply(T, corners)
         if (cam[:, 2] <= 0.1).any():
             return False
         u = sc.FX * cam[:, 0] / cam[:, 2] + sc.CX
@@ -211,7 +211,7 @@ def main(argv=None):
                 failures.append(f"scene {i}: {false} false, {missed} missed; {result.message}; rejected: "
                                 + "; ".join(r.reason for r in result.rejected))
             if i < 5:  # clustering: organized connected components vs PCL's Euclidean clusters
-                in_plane = _native.transform_cloud(xyz, g.invert_transform(result.T_sensor_from_plane))
+                in_plane = _native.transform_cloud(xyz, transforms.invert(result.T_sensor_from_plane))
                 c = auto_finder.AutoConfig()
                 idx = g.points_above_plane(in_plane, c.min_height, c.max_height)
                 cluster_times["organized"].append(median_time(lambda: _native.organized_clusters(

@@ -49,13 +49,15 @@ import argparse
 import json
 import sys
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import List, Optional, Tuple
 
 import numpy as np
 
 from example_pcl import _native
 from example_pcl import geometry as g
+from example_pcl import transforms
+from example_pcl.can import Can
 from example_pcl.errors import PerceptionError
 
 
@@ -149,37 +151,7 @@ class AutoConfig:
             raise PerceptionError("AutoConfig.clustering must be auto, organized or euclidean, "
                                   f"got {self.clustering!r}")
         if self.up is not None:
-            g._unit(self.up, "AutoConfig.up")
-
-
-@dataclass(frozen=True, eq=False)
-class CanDetection:
-    """One can found: base_center (float64 (3,), sensor frame, m): the centre of its base on the
-    table; axis (unit (3,), sensor frame): up the can, the table normal; radius, height (m);
-    rms_error (m): rms radial residual of the side inliers; shape_error (m): see the criterion;
-    arc_coverage (rad): angular span of the side seen; n_points: points in its cluster;
-    n_fit_points: side points in the final fit; T_sensor_from_can (4x4 float64): origin at
-    base_center, z along axis, x as the plane frame's; indices: int64 of its cluster's points
-    into the flattened input cloud."""
-
-    base_center: np.ndarray
-    axis: np.ndarray
-    radius: float
-    height: float
-    rms_error: float
-    shape_error: float
-    arc_coverage: float
-    n_points: int
-    n_fit_points: int
-    T_sensor_from_can: np.ndarray
-    indices: np.ndarray = field(repr=False)
-
-    def to_dict(self):
-        """JSON-able dict of everything but the indices."""
-        return {"base_center": self.base_center.tolist(), "axis": self.axis.tolist(), "radius": self.radius,
-                "height": self.height, "rms_error": self.rms_error, "shape_error": self.shape_error,
-                "arc_coverage": self.arc_coverage, "n_points": self.n_points, "n_fit_points": self.n_fit_points,
-                "T_sensor_from_can": self.T_sensor_from_can.tolist()}
+            g.unit_vector(self.up, "AutoConfig.up")
 
 
 @dataclass(frozen=True, eq=False)
@@ -207,7 +179,7 @@ class AutoResult:
 
     table: g.Plane
     T_sensor_from_plane: np.ndarray
-    cans: List[CanDetection]
+    cans: List[Can]
     rejected: List[RejectedCluster]
     candidate_planes: list
     timings: dict
@@ -250,16 +222,15 @@ def find_support_plane(xyz, viewpoint=(0.0, 0.0, 0.0), config=AutoConfig()):
     of subsampled points standing on it. Raises PerceptionError when the cloud has too few finite
     points or no plane is large enough.
     """
-    viewpoint = g._vector3(viewpoint, "viewpoint")
-    pts = g._float32_points(xyz)
+    viewpoint = g.as_vector3(viewpoint, "viewpoint")
+    pts = g.as_points_float32(xyz)
     step = int(config.ransac_step)
-    sub = pts[::step, ::step] if pts.ndim == 3 else pts[::step * step]
-    sub = _finite_rows(sub.reshape(-1, 3))
+    sub = _finite_rows(g.subsample(pts, step).reshape(-1, 3))
     if len(sub) < 3:
         raise PerceptionError(f"the cloud has {len(sub)} finite point(s) at a {step}-pixel step; no table "
                               "can be found (is the sensor covered or the cloud empty?)")
     min_inliers = max(int(config.min_plane_fraction * len(sub)), 3)
-    axis = None if config.up is None else tuple(float(v) for v in g._unit(config.up, "up"))
+    axis = None if config.up is None else tuple(float(v) for v in g.unit_vector(config.up, "up"))
     planes, remaining = [], sub
     for _ in range(int(config.max_planes)):
         if len(remaining) < min_inliers:
@@ -274,7 +245,7 @@ def find_support_plane(xyz, viewpoint=(0.0, 0.0, 0.0), config=AutoConfig()):
         normal = coefficients[:3].astype(float)
         normal /= np.linalg.norm(normal)
         centroid = remaining[inliers].mean(axis=0, dtype=float)
-        planes.append(g._oriented_plane(normal, centroid, 0.0, len(inliers), viewpoint))
+        planes.append(g.Plane.through(normal, centroid, viewpoint, 0.0, len(inliers)))
         mask = np.ones(len(remaining), bool)
         mask[inliers] = False
         remaining = remaining[mask]
@@ -286,9 +257,7 @@ def find_support_plane(xyz, viewpoint=(0.0, 0.0, 0.0), config=AutoConfig()):
     # stands on a plane when it is off every plane found and above this one by more than
     # min_height plus 3.5 sigma of depth noise at its range (far floor points stray several
     # centimetres off the floor by noise alone), and below max_height.
-    step = max(int(config.support_step), 1)
-    grid = pts[::step, ::step] if pts.ndim == 3 else pts[::step * step]
-    grid = grid.reshape(-1, 3)
+    grid = g.subsample(pts, config.support_step).reshape(-1, 3)
     grid = grid[np.isfinite(grid).all(axis=1)].astype(float)
     heights = np.stack([p.signed_distance(grid) for p in planes])
     sigma = config.noise_coefficient * np.einsum("ij,ij->i", grid - viewpoint, grid - viewpoint)
@@ -300,9 +269,9 @@ def find_support_plane(xyz, viewpoint=(0.0, 0.0, 0.0), config=AutoConfig()):
         candidates.append((plane, support))
     supported = [c for c in candidates if c[1] >= config.min_support]
     best = max(supported, key=lambda c: c[1]) if supported else max(candidates, key=lambda c: c[0].n_points)
-    r = int(config.refine_step)
-    dense = pts[::r, ::r] if pts.ndim == 3 else pts[::r]
-    plane, T, _ = g.refine_plane(dense, best[0], config.refine_band, viewpoint, iterations=config.refine_iterations)
+    dense = g.subsample(pts, config.refine_step)
+    plane, T, _, _ = g.refine_plane(dense, best[0], config.refine_band, viewpoint,
+                                    iterations=config.refine_iterations)
     return plane, T, candidates
 
 
@@ -409,29 +378,26 @@ def find_cans(xyz, viewpoint=(0.0, 0.0, 0.0), config=AutoConfig()):
     """
     config.validate()
     t0 = time.perf_counter()
-    pts = g._float32_points(xyz)
+    pts = g.as_points_float32(xyz)
     plane, T, candidates = find_support_plane(pts, viewpoint, config)
     t1 = time.perf_counter()
-    T_plane_from_sensor = g.invert_transform(T)
+    T_plane_from_sensor = transforms.invert(T)
     in_plane = _native.transform_cloud(pts, T_plane_from_sensor)
-    sensor_plane = T_plane_from_sensor[:3, :3] @ g._vector3(viewpoint, "viewpoint") + T_plane_from_sensor[:3, 3]
+    sensor_plane = transforms.apply(T_plane_from_sensor, g.as_vector3(viewpoint, "viewpoint"))
     t2 = time.perf_counter()
     clusters = _clusters(in_plane, config)
     t3 = time.perf_counter()
     cans, rejected = [], []
-    R, t = T[:3, :3], T[:3, 3]
     for idx in clusters:
         cluster = _native.extract(in_plane, idx).astype(float)
         fit, height, shape, n_side, reason = fit_upright_cylinder(cluster, sensor_plane, config)
         if reason is not None:
-            rejected.append(RejectedCluster(centroid=R @ cluster.mean(axis=0) + t, n_points=len(idx), reason=reason,
-                                            radius=None if fit is None else fit.radius))
+            rejected.append(RejectedCluster(centroid=transforms.apply(T, cluster.mean(axis=0)), n_points=len(idx),
+                                            reason=reason, radius=None if fit is None else fit.radius))
             continue
-        T_can = g.can_pose(T, fit.cx, fit.cy)
-        cans.append(CanDetection(base_center=T_can[:3, 3].copy(), axis=T_can[:3, 2].copy(), radius=fit.radius,
-                                 height=height, rms_error=fit.rms_error, shape_error=shape,
-                                 arc_coverage=fit.arc_coverage, n_points=len(idx), n_fit_points=fit.n_inliers,
-                                 T_sensor_from_can=T_can, indices=idx))
+        cans.append(Can(T_sensor_from_can=g.can_pose(T, fit.cx, fit.cy), radius=fit.radius, height=height,
+                        rms_error=fit.rms_error, arc_coverage=fit.arc_coverage, n_points=len(idx),
+                        n_fit_points=fit.n_inliers, center_plane=fit.center, shape_error=shape, indices=idx))
     cans.sort(key=lambda c: -c.n_fit_points)
     t4 = time.perf_counter()
     timings = {"table": t1 - t0, "transform": t2 - t1, "clusters": t3 - t2, "fits": t4 - t3, "total": t4 - t0}

@@ -31,6 +31,8 @@ import numpy as np
 from example_pcl import _native
 from example_pcl import auto_finder
 from example_pcl import geometry
+from example_pcl import transforms
+from example_pcl.can import Can
 from example_pcl.errors import PerceptionError
 
 
@@ -55,7 +57,7 @@ class FinderConfig:
 
     z_eps: half-width of the table band (plane inliers, and can-patch points dropped as table);
     z_threshold: height above the table that counts as "above"; can_radius, can_height: the can
-    model; r_eps: mode 3 leaves out points whose radial residual exceeds it (must be at least about
+    model of modes 2 and 3 (after mode 4, they fit the size of the can it found instead); r_eps: mode 3 leaves out points whose radial residual exceeds it (must be at least about
     half the initial guess's error); max_iterations: of one mode 3 fit; fit_margin: mode 3 uses the
     points above the table within can_radius + fit_margin of the current centre (plane frame x, y)
     and below can_height + fit_margin; refine_iterations: at most, of mode 0's plane refinement;
@@ -92,42 +94,17 @@ class FinderConfig:
 
 
 @dataclass(frozen=True, eq=False)
-class CanEstimate:
-    """Where the can is. T_sensor_from_can: 4x4 float64, origin at the centre of the can's base on
-    the table, z along the can's axis (the table normal); center_plane: (cx, cy) in the plane
-    frame (m); rms_error: RMS radial error (m) of the n_points points within r_eps of the can's
-    side; iterations: of the fit (0 for the initial guess); converged: of the fit (True for the
-    initial guess, which is not iterated)."""
-
-    T_sensor_from_can: np.ndarray
-    center_plane: np.ndarray
-    rms_error: float
-    n_points: int
-    iterations: int
-    converged: bool
-
-    @property
-    def base_center(self):
-        """Centre of the can's base, sensor frame (m): float64 (3,)."""
-        return self.T_sensor_from_can[:3, 3].copy()
-
-    @property
-    def axis(self):
-        """Unit axis of the can, up from the table, sensor frame: float64 (3,)."""
-        return self.T_sensor_from_can[:3, 2].copy()
-
-
-@dataclass(frozen=True, eq=False)
 class StepResult:
     """What a mode did. message: one line for the operator, with the numbers; model: float32 (N, 3)
     sensor-frame points to show as plane_model (the plane's inliers, the points above it, or the
-    can model at the estimate); can: the estimate after modes 2 and 3, else None."""
+    can model at the estimate); can: the estimate after modes 2, 3 and 4 (mode 4: the best can),
+    else None; cans: mode 4's every Can, best first (empty for the other modes)."""
 
     mode: Mode
     message: str
     model: np.ndarray
-    can: Optional[CanEstimate] = None
-    cans: tuple = ()  # mode 4: every auto_finder.CanDetection, best first
+    can: Optional[Can] = None
+    cans: tuple = ()
 
 
 @dataclass(frozen=True, eq=False)
@@ -151,10 +128,11 @@ class CanFinder:
     def __init__(self, scene, config=FinderConfig()):
         config.validate()
         self.config = config
-        self.scene = geometry._float32_points(scene)
-        self._flat = self.scene.reshape(-1, 3)
-        step = max(1, int(np.ceil(len(self._flat) / config.refine_points)))
-        self._sample = self._flat[::step]  # a strided view: the refinement's subsample
+        self.scene = geometry.as_points_float32(scene)
+        flat = self.scene.reshape(-1, 3)
+        # The refinement's subsample, a strided view: every step^2-th point of the flattened scene
+        # (the same points as every 16th for a 640x480 scene), at most refine_points of them.
+        self._sample = geometry.subsample(flat, int(np.ceil(np.sqrt(len(flat) / config.refine_points))))
         self._selection = None
         self._serial = 0
         self.reset()
@@ -170,7 +148,9 @@ class CanFinder:
         self._table_serial = -1  # the latest selection's serial when mode 0 or 4 set the table
         self.above_indices = None  # int64 indices of the points above the table
         self.can_patch = None  # float64 (K, 3) sensor frame, as used by mode 2
-        self.can = None  # CanEstimate
+        self.can = None  # Can
+        # The size modes 2 and 3 fit: the configured one, or the size of the can mode 4 found.
+        self.can_radius, self.can_height = self.config.can_radius, self.config.can_height
 
     @property
     def has_can_patch(self):
@@ -199,7 +179,7 @@ class CanFinder:
     def points_near(self, center, radius):
         """The scene's points within `radius` (m) of `center` (sensor frame, m): float32 (K, 3).
         What a clicked point selects."""
-        center = geometry._vector3(center, "the clicked point")
+        center = geometry.as_vector3(center, "the clicked point")
         d2 = _native.squared_distances(self.scene, center)
         return _native.extract(self.scene, np.flatnonzero(d2.reshape(-1) <= radius * radius).astype(np.int64))
 
@@ -247,11 +227,12 @@ class CanFinder:
         planes within config.auto.max_tilt of it are taken for the table. The table becomes the
         current plane, as after mode 0 (mode 1 can follow; only a selection made after mode 4 is the
         can patch), and the best can (the best-measured, first in the list) the current estimate,
-        as after mode 3. No can found is a failure saying why (up to three objects on the table with
+        as after mode 3: modes 2 and 3 then fit a can of its radius and height (until mode 0 brings
+        back the configured size). No can found is a failure saying why (up to three objects on the table with
         the criterion each failed), and the state is kept.
         """
         cfg = self.config
-        auto = cfg.auto if up is None else dataclasses.replace(cfg.auto, up=tuple(geometry._unit(up, "up")))
+        auto = cfg.auto if up is None else dataclasses.replace(cfg.auto, up=tuple(geometry.unit_vector(up, "up")))
         found = auto_finder.find_cans(self.scene, cfg.viewpoint, auto)
         if not found.cans:
             reasons = "".join(f"; object {i + 1} ({r.n_points} points at {_fmt(r.centroid)} m): {r.reason}"
@@ -259,39 +240,32 @@ class CanFinder:
             raise PerceptionError(f"{found.message}{reasons}; with several objects or a cluttered table, try the "
                                   "operator modes 0-3")
         best = found.cans[0]
-        in_plane = geometry.invert_transform(found.T_sensor_from_plane) @ np.append(best.base_center, 1.0)
-        can = CanEstimate(T_sensor_from_can=best.T_sensor_from_can, center_plane=in_plane[:2],
-                          rms_error=best.rms_error, n_points=best.n_fit_points, iterations=0, converged=True)
         self._set_table(found.table, found.T_sensor_from_plane)
-        self.can = can
+        self.can = best
+        self.can_radius, self.can_height = best.radius, best.height
         models = [_native.transform_cloud(geometry.make_can_cloud(c.radius, c.height), c.T_sensor_from_can)
                   for c in found.cans]
         b = best.base_center
         message = (f"{found.message}; best: base centre {_fmt(b)} m, radius {best.radius * 1e3:.1f} mm, height "
                    f"{best.height * 1e3:.0f} mm, RMS radial error {best.rms_error * 1e3:.1f} mm over "
                    f"{best.n_fit_points} points ({found.timings['total'] * 1e3:.0f} ms)")
-        return StepResult(Mode.FIND_CAN_AUTO, message, np.concatenate(models), can, tuple(found.cans))
+        return StepResult(Mode.FIND_CAN_AUTO, message, np.concatenate(models), best, tuple(found.cans))
 
     def identify_plane(self):
         """Mode 0: the table plane from the latest selection.
 
         The patch is cleaned (geometry.clean_patch: NaN dropped, points beyond one standard
         deviation from the centroid dropped), its plane fitted by PCL's computePointNormal and
-        turned toward the sensor; then refined (geometry.refine_plane, one pass at a time until
-        it stops moving) on a regular subsample of the cloud, so a small or tilted patch still
+        turned toward the sensor; then refined (geometry.refine_plane, at most refine_iterations
+        passes, until it stops moving) on a regular subsample of the cloud, so a small or tilted patch still
         gives the table; then the plane frame is put on it and the whole cloud transformed into it
         once, keeping the points within z_eps as the table's inliers.
         """
         cfg = self.config
         patch = geometry.patch_plane(self._selected_points("the table"), cfg.viewpoint)
-        plane, iterations = patch, 0
-        for iterations in range(1, cfg.refine_iterations + 1):
-            previous = plane
-            plane, _, _ = geometry.refine_plane(self._sample, plane, cfg.z_eps, cfg.viewpoint, iterations=1)
-            if abs(plane.d - previous.d) < 1e-7 and plane.normal @ previous.normal > 1 - 1e-12:
-                break
-        origin = plane.centroid - plane.signed_distance(plane.centroid) * plane.normal
-        indices = self._set_table(plane, geometry.plane_frame(plane.normal, origin))
+        plane, T, _, iterations = geometry.refine_plane(self._sample, patch, cfg.z_eps, cfg.viewpoint,
+                                                        iterations=cfg.refine_iterations)
+        indices = self._set_table(plane, T)
         tilt = np.degrees(np.arccos(np.clip(abs(patch.normal @ plane.normal), 0, 1)))
         message = (f"table plane: normal {_fmt(plane.normal)}, d={plane.d:.3f} m, {len(indices)} inliers "
                    f"within {cfg.z_eps * 1e3:.0f} mm (refined in {iterations} iterations from a "
@@ -341,20 +315,22 @@ class CanFinder:
         """Plane-frame points above the table near a centre (cx, cy): float64 (K, 3)."""
         cfg = self.config
         pts = _native.extract(self._scene_in_plane, self.above_indices).astype(float)
-        reach = cfg.can_radius + cfg.fit_margin
+        reach = self.can_radius + cfg.fit_margin
         d2 = (pts[:, 0] - center[0]) ** 2 + (pts[:, 1] - center[1]) ** 2
-        return pts[(d2 <= reach * reach) & (pts[:, 2] <= cfg.can_height - cfg.z_eps)]
+        return pts[(d2 <= reach * reach) & (pts[:, 2] <= self.can_height - cfg.z_eps)]
 
-    def _estimate(self, center, rms, n_points, iterations, converged):
-        T = geometry.can_pose(self.T_sensor_from_plane, center[0], center[1])
-        return CanEstimate(T_sensor_from_can=T, center_plane=np.asarray(center, dtype=float), rms_error=rms,
-                           n_points=n_points, iterations=iterations, converged=converged)
+    def _estimate(self, center, rms, arc, n_points, n_fit_points, iterations, converged):
+        """The Can of the current size with its axis at `center` (cx, cy; m, plane frame)."""
+        return Can(T_sensor_from_can=geometry.can_pose(self.T_sensor_from_plane, center[0], center[1]),
+                   radius=self.can_radius, height=self.can_height, rms_error=rms, arc_coverage=arc,
+                   n_points=n_points, n_fit_points=n_fit_points, center_plane=np.asarray(center, dtype=float),
+                   iterations=iterations, converged=converged)
 
     def can_model(self, can=None):
-        """The seed's can model (geometry.make_can_cloud) at an estimate (default the current
-        one), in the sensor frame: float32 (N, 3)."""
+        """The seed's can model (geometry.make_can_cloud) of a Can's radius and height at its pose
+        (default the current can), in the sensor frame: float32 (N, 3)."""
         can = self.can if can is None else can
-        model = geometry.make_can_cloud(self.config.can_radius, self.config.can_height)
+        model = geometry.make_can_cloud(can.radius, can.height)
         return _native.transform_cloud(model, can.T_sensor_from_can)
 
     def initial_fit(self):
@@ -372,25 +348,26 @@ class CanFinder:
         cfg = self.config
         raw = self._selected_points("the can")
         finite = raw[np.isfinite(raw).all(axis=1)]
-        T_plane_from_sensor = geometry.invert_transform(self.T_sensor_from_plane)
-        z = finite @ T_plane_from_sensor[2, :3] + T_plane_from_sensor[2, 3]
+        T_plane_from_sensor = transforms.invert(self.T_sensor_from_plane)
+        z = transforms.apply(T_plane_from_sensor, finite)[:, 2]
         band = max(cfg.z_eps, cfg.z_threshold)
         patch_pts = finite[z > band]
         if len(patch_pts) < 3:
             raise PerceptionError(f"the can patch has {len(patch_pts)} point(s) above the table band "
                                   f"({len(finite) - len(patch_pts)} on the table); select a larger patch on the can's side")
         patch = geometry.patch_plane(patch_pts, cfg.viewpoint)
-        centroid_plane = T_plane_from_sensor[:3, :3] @ patch.centroid + T_plane_from_sensor[:3, 3]
-        center = np.array(geometry.initial_can_center(centroid_plane, cfg.can_radius, T_plane_from_sensor[:3, 3]))
+        centroid_plane = transforms.apply(T_plane_from_sensor, patch.centroid)
+        center = np.array(geometry.initial_can_center(centroid_plane, self.can_radius, T_plane_from_sensor[:3, 3]))
         pts = self._can_points_plane(center)
-        residuals, _, _ = geometry.radial_error(pts, center[0], center[1], cfg.can_radius)
+        residuals, _, _ = geometry.radial_error(pts, center[0], center[1], self.can_radius)
         near = np.abs(residuals) <= cfg.r_eps
         rms = float(np.sqrt(np.mean(residuals[near] ** 2))) if near.any() else float("nan")
-        can = self._estimate(center, rms, int(near.sum()), 0, True)
+        arc = geometry.arc_coverage(pts[near], center[0], center[1])
+        can = self._estimate(center, rms, arc, len(pts), int(near.sum()), 0, True)
         self.can_patch, self.can = patch_pts, can
         message = (f"initial can centre {_fmt(can.base_center)} m: can patch of {patch.n_points} points "
                    f"({len(finite) - len(patch_pts)} table points dropped), moved "
-                   f"{cfg.can_radius * 1e3:.0f} mm away from the sensor; RMS radial error "
+                   f"{self.can_radius * 1e3:.0f} mm away from the sensor; RMS radial error "
                    f"{rms * 1e3:.1f} mm over {int(near.sum())} of {len(pts)} points within "
                    f"{cfg.r_eps * 1e3:.0f} mm; call mode 3 to fit")
         return StepResult(Mode.COMPUTE_CYLINDRICAL_FIT_ERR_INIT, message, self.can_model(can), can)
@@ -398,7 +375,8 @@ class CanFinder:
     def iterate_fit(self, rounds=3):
         """Mode 3: the can's axis (cx, cy) fitted to its points, run to convergence.
 
-        Levenberg-Marquardt on the radial errors |p - c| - can_radius with the analytic gradient
+        Levenberg-Marquardt on the radial errors |p - c| - radius (the configured can_radius, or
+        the radius of the can mode 4 found) with the analytic gradient
         (geometry.fit_cylinder_center), points beyond r_eps left out each iteration; the point set
         (the points above the table near the centre, see FinderConfig.fit_margin) is re-taken
         around the new centre and the fit repeated while the centre still moves by more than
@@ -413,14 +391,15 @@ class CanFinder:
         center, iterations, fit, pts = self.can.center_plane, 0, None, None
         for _ in range(max(int(rounds), 1)):
             pts = self._can_points_plane(center)
-            fit = geometry.fit_cylinder_center(pts, center, cfg.can_radius, cfg.r_eps,
+            fit = geometry.fit_cylinder_center(pts, center, self.can_radius, cfg.r_eps,
                                                max_iterations=cfg.max_iterations)
             iterations += fit.iterations
             moved = np.linalg.norm(fit.center - center)
             center = fit.center
             if not fit.converged or moved < 1e-4:
                 break
-        can = self._estimate(center, fit.rms_error, fit.n_inliers, iterations, fit.converged)
+        can = self._estimate(center, fit.rms_error, fit.arc_coverage, len(pts), fit.n_inliers, iterations,
+                             fit.converged)
         self.can = can
         if not fit.converged:
             raise PerceptionError(f"the fit did not converge in {iterations} iterations (RMS radial error "

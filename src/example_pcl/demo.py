@@ -140,10 +140,9 @@ class FindCanClient:
 def pose_error(pose_msg, truth_can):
     """(centre error in m, axis error in degrees) of a can_pose against a ground-truth can
     (scene.json's ``cans[i]``: base_center, axis; same frame)."""
-    from example_pcl.find_can_node import matrix_from_transform
+    from example_pcl.messages import matrix_from_pose
 
-    p, q = pose_msg.pose.position, pose_msg.pose.orientation
-    T = matrix_from_transform((p.x, p.y, p.z), (q.x, q.y, q.z, q.w))
+    T = matrix_from_pose(pose_msg.pose)
     centre_error = float(np.linalg.norm(T[:3, 3] - np.asarray(truth_can["base_center"])))
     cos = np.clip(T[:3, 2] @ np.asarray(truth_can["axis"]), -1.0, 1.0)
     return centre_error, float(np.degrees(np.arccos(cos)))

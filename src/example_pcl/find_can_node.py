@@ -43,6 +43,7 @@ from typing import Callable
 
 import numpy as np
 
+from example_pcl import messages, transforms
 from example_pcl.can_finder import CanFinder, FinderConfig, Mode, describe_modes
 from example_pcl.errors import PerceptionError, warning_kind
 
@@ -121,91 +122,6 @@ class FindCanConfig:
                 f"max_iterations={f.max_iterations} fit_margin={f.fit_margin} m")
 
 
-# --- messages (pure functions on arrays; the ROS types are imported where used) ---------------------
-
-
-def quaternion_from_matrix(R):
-    """Unit quaternion (x, y, z, w) of a 3x3 rotation matrix (Shepperd's method, float64 (4,))."""
-    R = np.asarray(R, dtype=float)
-    trace = np.trace(R)
-    if trace > 0:
-        s = 2.0 * np.sqrt(trace + 1.0)
-        q = [(R[2, 1] - R[1, 2]) / s, (R[0, 2] - R[2, 0]) / s, (R[1, 0] - R[0, 1]) / s, 0.25 * s]
-    else:
-        i = int(np.argmax(np.diag(R)))
-        j, k = (i + 1) % 3, (i + 2) % 3
-        s = 2.0 * np.sqrt(1.0 + R[i, i] - R[j, j] - R[k, k])
-        q = [0.0, 0.0, 0.0, (R[k, j] - R[j, k]) / s]
-        q[i] = 0.25 * s
-        q[j] = (R[j, i] + R[i, j]) / s
-        q[k] = (R[k, i] + R[i, k]) / s
-    q = np.asarray(q)
-    return q / np.linalg.norm(q)
-
-
-def matrix_from_transform(translation, rotation_xyzw):
-    """4x4 float64 from a translation (x, y, z) and a quaternion (x, y, z, w), e.g. a tf2 transform."""
-    x, y, z, w = np.asarray(rotation_xyzw, dtype=float) / np.linalg.norm(rotation_xyzw)
-    T = np.eye(4)
-    T[:3, :3] = [[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                 [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                 [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]]
-    T[:3, 3] = translation
-    return T
-
-
-def up_vector(rotation_xyzw):
-    """The +z axis of a frame A expressed in a frame B, from the rotation (x, y, z, w) of the
-    transform that takes A's coordinates into B's (tf2's lookup_transform(target_frame=B,
-    source_frame=A)): unit float64 (3,). With A a robot's base_link or world, that is "up" in B.
-    Raises PerceptionError for a quaternion that is not 4 finite numbers or is zero."""
-    q = np.asarray(rotation_xyzw, dtype=float)
-    if q.shape != (4,) or not np.isfinite(q).all() or not np.linalg.norm(q) > 1e-9:
-        raise PerceptionError(f"a rotation must be a non-zero quaternion (x, y, z, w), got {rotation_xyzw!r}")
-    return matrix_from_transform((0.0, 0.0, 0.0), q)[:3, 2]
-
-
-def pose_message(T, frame_id, stamp=None):
-    """geometry_msgs/PoseStamped of a 4x4 transform (the pose of a frame in frame_id)."""
-    from geometry_msgs.msg import PoseStamped
-
-    msg = PoseStamped()
-    msg.header.frame_id = frame_id
-    if stamp is not None:
-        msg.header.stamp = stamp
-    p, q = msg.pose.position, msg.pose.orientation
-    p.x, p.y, p.z = (float(v) for v in T[:3, 3])
-    q.x, q.y, q.z, q.w = (float(v) for v in quaternion_from_matrix(T[:3, :3]))
-    return msg
-
-
-def can_marker(T_sensor_from_can, radius, height, frame_id, stamp=None):
-    """visualization_msgs/Marker: a CYLINDER of the can (radius, height in m), centred half a
-    height above the base along the axis, as Marker poses give a cylinder's centre."""
-    from visualization_msgs.msg import Marker
-
-    centre = np.array(T_sensor_from_can, dtype=float)
-    centre[:3, 3] += 0.5 * height * centre[:3, 2]
-    marker = Marker()
-    marker.header = pose_message(centre, frame_id, stamp).header
-    marker.ns, marker.id, marker.type, marker.action = "can", 0, Marker.CYLINDER, Marker.ADD
-    marker.pose = pose_message(centre, frame_id).pose
-    marker.scale.x = marker.scale.y = 2.0 * radius
-    marker.scale.z = height
-    marker.color.r, marker.color.g, marker.color.b, marker.color.a = 0.1, 0.8, 1.0, 0.6
-    return marker
-
-
-def delete_marker(frame_id):
-    """visualization_msgs/Marker deleting the can marker (a new plane forgets the can)."""
-    from visualization_msgs.msg import Marker
-
-    marker = Marker()
-    marker.header.frame_id = frame_id
-    marker.ns, marker.id, marker.action = "can", 0, Marker.DELETE
-    return marker
-
-
 # --- the node -------------------------------------------------------------------------------------
 
 
@@ -281,8 +197,7 @@ class FindCanNode:
             raise PerceptionError(f"{what} is in frame '{frame_id}', not '{self.config.frame_id}', and tf2 has no "
                                   f"transform between them ({reason}); set rviz's fixed frame to "
                                   f"'{self.config.frame_id}'")
-        t, q = tf.translation, tf.rotation
-        return matrix_from_transform((t.x, t.y, t.z), (q.x, q.y, q.z, q.w))
+        return messages.matrix_from_transform(tf)
 
     def _up_prior(self):
         """Mode 4's up prior: the +z axis of ~up_frame in ~frame_id, looked up through tf2 now
@@ -297,7 +212,7 @@ class FindCanNode:
                                   f"'{self.config.frame_id}' ({reason}); publish it (e.g. a static transform) "
                                   "or clear ~up_frame to search without a prior")
         q = tf.rotation
-        return up_vector((q.x, q.y, q.z, q.w))
+        return transforms.up_vector((q.x, q.y, q.z, q.w))
 
     # --- callbacks ---
 
@@ -310,7 +225,7 @@ class FindCanNode:
                 pts = np.asarray(xyz_view(validate_cloud(msg, MAX_SELECTION_POINTS)), dtype=float).reshape(-1, 3)
                 T = self._to_scene_frame(msg.header.frame_id, "the selection")
                 if T is not None:
-                    pts = pts @ T[:3, :3].T + T[:3, 3]
+                    pts = transforms.apply(T, pts)
                 n = self.finder.select(pts)
             except PerceptionError as e:
                 self.finder.reject_selection(str(e))
@@ -334,7 +249,7 @@ class FindCanNode:
             try:
                 T = self._to_scene_frame(msg.header.frame_id, "the clicked point")
                 if T is not None:
-                    p = T[:3, :3] @ p + T[:3, 3]
+                    p = transforms.apply(T, p)
                 pts = self.finder.points_near(p, self.config.patch_radius)
                 n = self.finder.select(pts)
             except PerceptionError as e:
@@ -385,17 +300,15 @@ class FindCanNode:
         stamp = rospy.Time.now()
         message = result.message
         if result.mode == Mode.IDENTIFY_PLANE:
-            self.marker_pub.publish(delete_marker(frame))
+            self.marker_pub.publish(messages.delete_marker(frame))
         self.model_pub.publish(xyz_to_cloud(result.model, frame_id=frame, stamp=stamp))
         if result.mode == Mode.FIND_CAN_AUTO:
             self._publish_all_cans(result.cans, frame, stamp)
         if result.can is not None:
-            T = result.can.T_sensor_from_can
-            pose = pose_message(T, frame, stamp)
+            can = result.can
+            pose = messages.pose_message(can.T_sensor_from_can, frame, stamp)
             self.pose_pub.publish(pose)
-            radius, height = ((result.cans[0].radius, result.cans[0].height) if result.cans else
-                              (self.config.finder.can_radius, self.config.finder.can_height))
-            self.marker_pub.publish(can_marker(T, radius, height, frame, stamp))
+            self.marker_pub.publish(messages.can_marker(can.T_sensor_from_can, can.radius, can.height, frame, stamp))
             message += f" (frame {frame})"
             if self.target_pub is not None:
                 message += "; " + self._publish_in_target(pose)
@@ -404,21 +317,8 @@ class FindCanNode:
     def _publish_all_cans(self, cans, frame, stamp):
         """Mode 4's can_poses (PoseArray) and can_markers (MarkerArray: a DELETEALL, so no marker of
         an earlier search stays, then one cylinder per can); both empty of cans when none was found."""
-        from geometry_msgs.msg import PoseArray
-        from visualization_msgs.msg import Marker, MarkerArray
-
-        poses = PoseArray()
-        poses.header.frame_id, poses.header.stamp = frame, stamp
-        poses.poses = [pose_message(c.T_sensor_from_can, frame, stamp).pose for c in cans]
-        self.poses_pub.publish(poses)
-        clear = Marker(action=Marker.DELETEALL)
-        clear.header.frame_id = frame
-        markers = [clear]
-        for i, c in enumerate(cans):
-            marker = can_marker(c.T_sensor_from_can, c.radius, c.height, frame, stamp)
-            marker.ns, marker.id = "can_markers", i
-            markers.append(marker)
-        self.markers_pub.publish(MarkerArray(markers=markers))
+        self.poses_pub.publish(messages.can_poses(cans, frame, stamp))
+        self.markers_pub.publish(messages.can_markers(cans, frame, stamp))
 
     def _publish_in_target(self, pose):
         """Publishes the pose in ~target_frame through tf2; returns a clause for the message."""

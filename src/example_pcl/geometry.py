@@ -5,7 +5,8 @@ y down, z forward). The *plane frame* has its z axis along the table normal (tow
 its origin on the table and its x axis as close as possible to the sensor's x axis, so a can
 standing on the table is a circle of constant radius in the plane frame's x, y.
 
-Transforms are 4x4 float64 homogeneous matrices named ``T_a_from_b``: ``p_a = T_a_from_b @ p_b``.
+Transforms are 4x4 float64 homogeneous matrices named ``T_a_from_b``: ``p_a = T_a_from_b @ p_b``
+(example_pcl.transforms applies, inverts and composes them).
 
 Work over whole scenes (transforming, banding, extracting) goes through the compiled core,
 ``example_pcl._native`` (PCL and Eigen); operator selections and fits are small and stay in NumPy.
@@ -16,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from example_pcl import _native
+from example_pcl import transforms
 from example_pcl.errors import PerceptionError
 
 # --- results --------------------------------------------------------------------------------------
@@ -45,6 +47,19 @@ class Plane:
     def signed_distance(self, points):
         """Signed distance (m) of points (..., 3) from the plane, positive on the normal's side."""
         return np.asarray(points, dtype=float) @ self.normal + self.d
+
+    @classmethod
+    def through(cls, normal, centroid, viewpoint, curvature=0.0, n_points=0):
+        """The plane through `centroid` (float64 (3,), m) with the unit `normal` turned toward
+        `viewpoint` (m, same frame).
+
+        d is computed from the turned normal, so it flips with it and normal . centroid + d = 0
+        always holds (the original seed flipped the normal but kept PCL's d).
+        """
+        if normal @ (viewpoint - centroid) < 0:
+            normal = -normal
+        return cls(normal=normal, d=float(-normal @ centroid), centroid=centroid,
+                   curvature=float(curvature), n_points=int(n_points))
 
 
 @dataclass(frozen=True, eq=False)
@@ -77,40 +92,39 @@ class CylinderFit:
 # --- helpers --------------------------------------------------------------------------------------
 
 
-def _float32_points(points):
+def as_points_float32(points):
     """points as float32 (N, 3) or (H, W, 3) for the native core; a float32 array is passed as is
-    (any strides, no copy)."""
+    (any strides, no copy). Raises PerceptionError for any other shape."""
     pts = np.asarray(points, dtype=np.float32)
     if pts.ndim not in (2, 3) or pts.shape[-1] != 3:
         raise PerceptionError(f"points must be an array of shape (N, 3) or (H, W, 3), got shape {pts.shape}")
     return pts
 
 
-def _vector3(v, name):
+def as_vector3(v, name):
+    """v as float64 (3,); raises PerceptionError naming `name` unless it is 3 finite numbers."""
     v = np.asarray(v, dtype=float)
     if v.shape != (3,) or not np.isfinite(v).all():
         raise PerceptionError(f"{name} must be 3 finite numbers, got {v!r}")
     return v
 
 
-def _unit(v, name):
-    v = _vector3(v, name)
+def unit_vector(v, name):
+    """v / |v| as float64 (3,); raises PerceptionError naming `name` unless it is 3 finite
+    numbers, not all zero."""
+    v = as_vector3(v, name)
     norm = np.linalg.norm(v)
     if not norm > 0:
         raise PerceptionError(f"{name} must be a non-zero vector, got {v!r}")
     return v / norm
 
 
-def _oriented_plane(normal, centroid, curvature, n_points, viewpoint):
-    """The plane through `centroid` with `normal` turned toward `viewpoint`.
-
-    d is computed from the turned normal, so it flips with it and normal . centroid + d = 0
-    always holds (the original seed flipped the normal but kept PCL's d).
-    """
-    if normal @ (viewpoint - centroid) < 0:
-        normal = -normal
-    return Plane(normal=normal, d=float(-normal @ centroid), centroid=centroid,
-                 curvature=float(curvature), n_points=int(n_points))
+def subsample(points, step):
+    """A regular subsample of a cloud, as a strided view (no copy): an organized (H, W, 3) cloud
+    keeps every step-th pixel in both directions, an unorganized (N, 3) one every (step * step)-th
+    point, so both keep about 1 / step^2 of the points. step: int >= 1."""
+    step = max(int(step), 1)
+    return points[::step, ::step] if points.ndim == 3 else points[::step * step]
 
 
 # --- patches and planes ---------------------------------------------------------------------------
@@ -157,7 +171,7 @@ def patch_plane(points, viewpoint=(0.0, 0.0, 0.0), line_ratio=1e-4):
     Raises PerceptionError for fewer than 3 usable points, or when the patch is a line or a
     point: its second-largest covariance eigenvalue is below `line_ratio` times the largest.
     """
-    viewpoint = _vector3(viewpoint, "viewpoint")
+    viewpoint = as_vector3(viewpoint, "viewpoint")
     pts = clean_patch(points)
     centroid = pts.mean(axis=0)
     rel = pts - centroid
@@ -167,7 +181,7 @@ def patch_plane(points, viewpoint=(0.0, 0.0, 0.0), line_ratio=1e-4):
     coefficients, curvature = _native.compute_point_normal(rel.astype(np.float32))
     normal = coefficients[:3].astype(float)
     normal /= np.linalg.norm(normal)
-    return _oriented_plane(normal, centroid, curvature, len(pts), viewpoint)
+    return Plane.through(normal, centroid, viewpoint, curvature, len(pts))
 
 
 def plane_frame(normal, origin, sensor_x=(1.0, 0.0, 0.0)):
@@ -178,9 +192,9 @@ def plane_frame(normal, origin, sensor_x=(1.0, 0.0, 0.0)):
     frame is as little rotated from the sensor as the plane allows), y = z x x. When sensor_x
     is (nearly) parallel to the normal, the sensor's y axis is projected instead.
     """
-    z = _unit(normal, "normal")
-    origin = _vector3(origin, "origin")
-    for reference in (_unit(sensor_x, "sensor_x"), np.array([0.0, 1.0, 0.0]), np.array([0.0, 0.0, 1.0])):
+    z = unit_vector(normal, "normal")
+    origin = as_vector3(origin, "origin")
+    for reference in (unit_vector(sensor_x, "sensor_x"), np.array([0.0, 1.0, 0.0]), np.array([0.0, 0.0, 1.0])):
         x = reference - (reference @ z) * z
         norm = np.linalg.norm(x)
         if norm > 1e-3:  # more than ~0.06 degrees from the normal: a well-defined direction
@@ -191,18 +205,6 @@ def plane_frame(normal, origin, sensor_x=(1.0, 0.0, 0.0)):
     return T
 
 
-def invert_transform(T):
-    """Inverse of a rigid 4x4 transform (float64): [R t] -> [R^T, -R^T t]."""
-    T = np.asarray(T, dtype=float)
-    if T.shape != (4, 4):
-        raise PerceptionError(f"a transform must be a 4x4 matrix, got shape {T.shape}")
-    R, t = T[:3, :3], T[:3, 3]
-    out = np.eye(4)
-    out[:3, :3] = R.T
-    out[:3, 3] = -R.T @ t
-    return out
-
-
 def plane_inliers(points, T_sensor_from_plane, z_eps):
     """Points within z_eps (m) of the plane z = 0 of a plane frame.
 
@@ -210,8 +212,8 @@ def plane_inliers(points, T_sensor_from_plane, z_eps):
     Returns (indices, points_in_plane_frame): int64 indices into the flattened cloud, and the
     whole cloud transformed into the plane frame (float32, same shape; NaN stays NaN).
     """
-    pts = _float32_points(points)
-    in_plane = _native.transform_cloud(pts, invert_transform(T_sensor_from_plane))
+    pts = as_points_float32(points)
+    in_plane = _native.transform_cloud(pts, transforms.invert(T_sensor_from_plane))
     return _native.filter_z_band(in_plane, 0.0, float(z_eps)), in_plane
 
 
@@ -225,37 +227,39 @@ def refine_plane(points, plane, z_eps, viewpoint=(0.0, 0.0, 0.0), iterations=3):
     band many centimetres wide, whose points are all table: one pass already corrects most of
     the tilt, the next ones the rest. Stops early once the plane no longer moves.
 
-    points: float32 (N, 3) or (H, W, 3) sensor-frame cloud; plane: the starting Plane.
-    Returns (Plane, T_sensor_from_plane, inlier indices): the refined plane, the plane frame on
-    it, and the int64 indices (flattened cloud) of the points within z_eps of it.
+    points: float32 (N, 3) or (H, W, 3) sensor-frame cloud; plane: the starting Plane;
+    iterations: at most this many passes.
+    Returns (Plane, T_sensor_from_plane, inlier indices, passes): the refined plane, the plane
+    frame on it, the int64 indices (flattened cloud) of the points within z_eps of it, and how
+    many passes ran (the last one the pass that found the plane no longer moving, if it stopped).
     Raises PerceptionError when fewer than 3 points lie in the band.
     """
-    viewpoint = _vector3(viewpoint, "viewpoint")
+    viewpoint = as_vector3(viewpoint, "viewpoint")
     if not z_eps > 0:
         raise PerceptionError(f"z_eps must be > 0 m, got {z_eps}")
-    pts = _float32_points(points)
+    pts = as_points_float32(points)
 
     def frame_on(p):
         return plane_frame(p.normal, p.centroid - p.signed_distance(p.centroid) * p.normal)
 
-    for _ in range(max(int(iterations), 1)):
+    passes = 0
+    for passes in range(1, max(int(iterations), 1) + 1):
         T = frame_on(plane)
         idx, in_plane = plane_inliers(pts, T, z_eps)
         if len(idx) < 3:
             raise PerceptionError(f"only {len(idx)} point(s) lie within {z_eps} m of the patch plane; "
                                   "select a patch on the table or raise z_eps")
         coefficients, curvature = _native.compute_point_normal(in_plane, idx)
-        R, t = T[:3, :3], T[:3, 3]
-        normal = R @ coefficients[:3].astype(float)
+        normal = T[:3, :3] @ coefficients[:3].astype(float)
         normal /= np.linalg.norm(normal)
-        centroid = R @ _native.centroid(in_plane, idx) + t
+        centroid = transforms.apply(T, _native.centroid(in_plane, idx))
         previous = plane
-        plane = _oriented_plane(normal, centroid, curvature, len(idx), viewpoint)
+        plane = Plane.through(normal, centroid, viewpoint, curvature, len(idx))
         if (abs(plane.d - previous.d) < 1e-7 and plane.normal @ previous.normal > 1 - 1e-12):
             break
     T = frame_on(plane)
     idx, _ = plane_inliers(pts, T, z_eps)
-    return plane, T, idx
+    return plane, T, idx, passes
 
 
 def points_above_plane(points_in_plane_frame, z_threshold, max_height=None):
@@ -264,7 +268,7 @@ def points_above_plane(points_in_plane_frame, z_threshold, max_height=None):
 
     points_in_plane_frame: float32 (N, 3) or (H, W, 3), e.g. from plane_inliers. NaN never kept.
     """
-    pts = _float32_points(points_in_plane_frame)
+    pts = as_points_float32(points_in_plane_frame)
     idx = _native.filter_above_z(pts, float(z_threshold))
     if max_height is not None:
         idx = idx[_native.extract(pts, idx)[:, 2] <= max_height]
@@ -281,7 +285,7 @@ def initial_can_center(patch_centroid_plane, radius, sensor_origin_plane):
     the sensor than the patch: the patch centroid's (x, y) is moved `radius` along the horizontal
     direction from the sensor's projection onto the plane to the centroid. (The seed used the
     centroid itself, a radius short.) sensor_origin_plane: the sensor's position in the plane
-    frame, invert_transform(T_sensor_from_plane)[:3, 3]. Directly below the sensor there is no
+    frame, transforms.invert(T_sensor_from_plane)[:3, 3]. Directly below the sensor there is no
     such direction and the centroid is returned.
     """
     c = np.asarray(patch_centroid_plane, dtype=float)[:2]

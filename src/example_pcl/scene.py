@@ -30,6 +30,7 @@ from typing import List, Optional, Tuple
 
 import numpy as np
 
+from example_pcl import transforms
 from example_pcl.errors import PerceptionError
 
 # The simulated Kinect's depth camera (pixels); the bundled scenes and the nodes assume these.
@@ -167,14 +168,6 @@ def camera_pose(spec):
     T[:3, 0], T[:3, 1], T[:3, 2] = x_cam, y_cam, z_cam
     T[:3, 3] = aim - spec.camera_distance * z_cam
     return T
-
-
-def _invert(T):
-    R, t = T[:3, :3], T[:3, 3]
-    out = np.eye(4)
-    out[:3, :3] = R.T
-    out[:3, 3] = -R.T @ t
-    return out
 
 
 # --- ray casting in the table frame ---------------------------------------------------------------
@@ -358,12 +351,12 @@ def generate_scene(spec=None, rng=None):
 
 
 def _truth(spec, T_table_cam):
-    T = _invert(T_table_cam)  # camera_from_table
-    R, t = T[:3, :3], T[:3, 3]
+    T = transforms.invert(T_table_cam)  # camera_from_table
+    R = T[:3, :3]
     up = R[:, 2]
 
     def to_cam(p):
-        return R @ np.asarray(p, dtype=float) + t
+        return transforms.apply(T, p)
 
     def plane(point):
         return {"normal": up.tolist(), "d": float(-up @ to_cam(point))}

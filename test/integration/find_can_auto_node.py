@@ -37,7 +37,7 @@ from find_can_helpers import (PKG, call_mode, call_mode_until, find_can_node, pi
 
 from example_pcl import scene as sc
 from example_pcl.demo import FindCanClient, pose_error, walkthrough
-from example_pcl.find_can_node import matrix_from_transform
+from example_pcl.messages import matrix_from_pose
 from example_pcl.pcd import write_cloud
 
 DATA = pathlib.Path(roslib.packages.get_pkg_dir(PKG)) / "data"
@@ -60,8 +60,7 @@ PRIOR = re.compile(r"up prior \((-?\d+\.\d+), (-?\d+\.\d+), (-?\d+\.\d+)\) \(\+z
 
 def transform(pose):
     """4x4 of a geometry_msgs/Pose."""
-    p, q = pose.position, pose.orientation
-    return matrix_from_transform((p.x, p.y, p.z), (q.x, q.y, q.z, q.w))
+    return matrix_from_pose(pose)
 
 
 def can_errors(pose, can):

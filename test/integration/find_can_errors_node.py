@@ -17,7 +17,7 @@ import rostest
 from find_can_helpers import send_static_transforms
 
 from example_pcl.demo import CAN_RECT, TABLE_RECT, FindCanClient, pose_error
-from example_pcl.find_can_node import matrix_from_transform
+from example_pcl.transforms import from_translation_quaternion_xyzw
 from example_pcl.pcd import read_pcd
 from example_pcl.select_patch import select_points
 
@@ -25,7 +25,7 @@ PKG = "example_pcl"
 DATA = pathlib.Path(roslib.packages.get_pkg_dir(PKG)) / "data"
 STRADDLING_RECT = (310, 240, 328, 262)  # the can's lower side and the table in front of it (~40 % table)
 # camera_link from world: the frame a selection may come in, known to tf2 through a static transform.
-CAMERA_FROM_WORLD = matrix_from_transform((0.05, -0.02, 0.1), (0.0, 0.0, 0.3826834, 0.9238795))
+CAMERA_FROM_WORLD = from_translation_quaternion_xyzw((0.05, -0.02, 0.1), (0.0, 0.0, 0.3826834, 0.9238795))
 
 
 class Errors(unittest.TestCase):

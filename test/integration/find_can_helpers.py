@@ -15,7 +15,7 @@ import roslib.packages
 import rospy
 
 from example_pcl import scene as sc
-from example_pcl.find_can_node import quaternion_from_matrix
+from example_pcl.messages import pose
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[2] / "tools"))
 from netns_graph import stop_process  # noqa: E402
@@ -66,15 +66,16 @@ def send_static_transforms(broadcaster, transforms):
     topic holds only the last message a process sent, so every frame goes in each one."""
     from geometry_msgs.msg import TransformStamped
 
-    messages = []
+    stamped = []
     for (parent, child), T in transforms.items():
         tf = TransformStamped()
         tf.header.stamp, tf.header.frame_id, tf.child_frame_id = rospy.Time.now(), parent, child
-        t, q = tf.transform.translation, tf.transform.rotation
-        t.x, t.y, t.z = (float(v) for v in T[:3, 3])
-        q.x, q.y, q.z, q.w = (float(v) for v in quaternion_from_matrix(T[:3, :3]))
-        messages.append(tf)
-    broadcaster.sendTransform(messages)
+        p = pose(T)
+        tf.transform.translation.x, tf.transform.translation.y, tf.transform.translation.z = (
+            p.position.x, p.position.y, p.position.z)
+        tf.transform.rotation = p.orientation
+        stamped.append(tf)
+    broadcaster.sendTransform(stamped)
 
 
 def pixel_rect(labels, label, qv=0.5, qu=0.5, half=4):

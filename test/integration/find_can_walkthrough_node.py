@@ -22,7 +22,8 @@ from find_can_helpers import PKG, find_can_node, pixel_rect, send_static_transfo
 
 from example_pcl import scene as sc
 from example_pcl.demo import FindCanClient, pose_error, walkthrough
-from example_pcl.find_can_node import matrix_from_transform
+from example_pcl.messages import matrix_from_pose
+from example_pcl.transforms import from_translation_quaternion_xyzw
 from example_pcl.pcd import read_pcd, write_cloud
 
 DATA = pathlib.Path(roslib.packages.get_pkg_dir(PKG)) / "data"
@@ -35,7 +36,7 @@ SCENES = [
 ]
 # base_link from world (the sensor frame as find_can publishes it): a robot's base 0.8 m behind
 # and 0.5 m below a sensor looking down, as a static transform the test node broadcasts.
-BASE_FROM_WORLD = matrix_from_transform((0.2, -0.1, 0.8), (0.5, -0.5, 0.5, -0.5))
+BASE_FROM_WORLD = from_translation_quaternion_xyzw((0.2, -0.1, 0.8), (0.5, -0.5, 0.5, -0.5))
 
 
 class Walkthrough(unittest.TestCase):
@@ -105,10 +106,8 @@ class Walkthrough(unittest.TestCase):
                 if target_frame:
                     in_target = rospy.wait_for_message(f"{ns}/can_pose_target", PoseStamped, timeout=10)
                     self.assertEqual(in_target.header.frame_id, target_frame)
-                    p, q = pose.pose.position, pose.pose.orientation
-                    expected = BASE_FROM_WORLD @ matrix_from_transform((p.x, p.y, p.z), (q.x, q.y, q.z, q.w))
-                    p, q = in_target.pose.position, in_target.pose.orientation
-                    got = matrix_from_transform((p.x, p.y, p.z), (q.x, q.y, q.z, q.w))
+                    expected = BASE_FROM_WORLD @ matrix_from_pose(pose.pose)
+                    got = matrix_from_pose(in_target.pose)
                     np.testing.assert_allclose(got, expected, atol=1e-6)
                     self.assertIn(f"in {target_frame}: (", messages[-1])
 

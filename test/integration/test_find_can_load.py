@@ -73,10 +73,10 @@ def answer(finder, mode):
 
 def pose_difference(pose, T):
     """(position difference in m, quaternion difference) of a recorded can_pose [x, y, z, qx, qy, qz, qw] and a 4x4."""
-    from example_pcl.find_can_node import quaternion_from_matrix
+    from example_pcl.transforms import quaternion_xyzw_from_matrix
 
     pose = np.asarray(pose)
-    return float(np.abs(pose[:3] - T[:3, 3]).max()), float(np.abs(pose[3:] - quaternion_from_matrix(T[:3, :3])).max())
+    return float(np.abs(pose[:3] - T[:3, 3]).max()), float(np.abs(pose[3:] - quaternion_xyzw_from_matrix(T[:3, :3])).max())
 
 
 def run_load(ros_graph, tmp_path, *args):

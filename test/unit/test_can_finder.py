@@ -38,9 +38,9 @@ def can_patch(scene, can=0, qv=0.5, qu=0.5, half=3):
     return rect(scene.xyz, int(np.quantile(vs, qv)), int(np.quantile(us, qu)), half)
 
 
-def run(scene, can=0, patch=None):
+def run(scene, can=0, patch=None, config=FinderConfig()):
     """The seed's walkthrough; returns (finder, results of modes 0..3)."""
-    f = CanFinder(scene.xyz, FinderConfig())
+    f = CanFinder(scene.xyz, config)
     f.select(table_patch(scene))
     results = [f.process(0), f.process(1)]
     f.select(can_patch(scene, can) if patch is None else patch)
@@ -331,12 +331,13 @@ def test_mode_4_with_no_can_fails_with_the_reason():
 
 def test_modes_1_to_3_continue_from_mode_4():
     """After mode 4, mode 1 finds the points above its table, an earlier selection is not taken as
-    the can patch, and a can patch selected after mode 4 gives the same centre (0.1 mm) as modes 0-3."""
+    the can patch, and a can patch selected after mode 4 gives the same centre (0.1 mm) as modes 0-3
+    fitting a can of the size mode 4 found."""
     scene = make_scene(1.0, 0.9)
-    _, reference = run(scene)
     f = CanFinder(scene.xyz, FinderConfig())
     f.select(table_patch(scene))
-    f.process(4)
+    found = f.process(4).can
+    _, reference = run(scene, config=FinderConfig(can_radius=found.radius, can_height=found.height))
     above = f.process(1)
     assert abs(len(above.model) - len(reference[1].model)) <= 0.005 * len(reference[1].model)
     with pytest.raises(PerceptionError, match="no can patch yet"):
@@ -345,6 +346,52 @@ def test_modes_1_to_3_continue_from_mode_4():
     f.process(2)
     fit = f.process(3)
     assert np.linalg.norm(fit.can.base_center - reference[3].can.base_center) < 1e-4
+
+
+def test_modes_2_3_after_mode_4_fit_the_size_it_found():
+    """After mode 4 found a 45 mm can (the configured size is 33 mm), modes 2 and 3 fit a can of
+    mode 4's radius and height: the centre within 3 mm of the truth, the model on the can's side;
+    a new mode 0 brings the configured size back."""
+    spec = sc.SceneSpec(camera_distance=1.0, tilt=0.9, cans=[(0.0, 0.0, 0.045, 0.15)], seed=5)
+    scene = sc.generate_scene(spec)
+    f = CanFinder(scene.xyz, FinderConfig())
+    found = f.process(4).can
+    assert found.radius == pytest.approx(0.045, abs=1e-3)
+    f.process(1)
+    f.select(can_patch(scene))
+    initial = f.process(2).can
+    fit = f.process(3)
+    for can in (initial, fit.can):
+        assert (can.radius, can.height) == (found.radius, found.height)
+    assert centre_error(scene, 0, fit.can) < 3e-3
+    model = fit.model.astype(float) - fit.can.base_center
+    along = model @ fit.can.axis
+    assert along.max() == pytest.approx(found.height, abs=1e-5)
+    side = np.linalg.norm(model - along[:, None] * fit.can.axis, axis=1).max()
+    assert side == pytest.approx(found.radius, abs=1e-5)
+    f.select(table_patch(scene))
+    f.process(0)
+    f.process(1)
+    f.select(can_patch(scene))
+    assert f.process(2).can.radius == 0.033 and f.can.height == 0.122
+
+
+def test_mode_2_3_can_reports_its_fit():
+    """Modes 2 and 3 return a Can with the configured size, the fit's points (n_fit_points of
+    n_points within r_eps), its arc (about the visible half) and the plane-frame centre of its pose."""
+    scene = make_scene(1.0, 0.9)
+    f, results = run(scene)
+    for result in results[2:]:
+        can = result.can
+        assert (can.radius, can.height) == (0.033, 0.122)
+        assert 0 < can.n_fit_points <= can.n_points
+        assert 2.0 < can.arc_coverage < 2 * np.pi
+        assert can.shape_error is None and can.indices is None
+        in_plane = np.linalg.inv(f.T_sensor_from_plane) @ np.append(can.base_center, 1.0)
+        np.testing.assert_allclose(in_plane[:2], can.center_plane, atol=1e-9)
+        assert set(can.to_dict()) >= {"base_center", "axis", "radius", "height", "rms_error", "arc_coverage",
+                                      "n_points", "n_fit_points", "iterations", "converged"}
+    assert results[2].can.iterations == 0 and results[3].can.iterations > 0
 
 
 def test_mode_4_up_prior_replaces_the_configured_one():

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from example_pcl import demo, geometry
-from example_pcl.find_can_node import pose_message
+from example_pcl.messages import pose_message
 
 DATA = pathlib.Path(__file__).resolve().parents[2] / "data"
 

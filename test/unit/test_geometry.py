@@ -9,6 +9,7 @@ from numpy.testing import assert_allclose, assert_array_equal
 
 from example_pcl import geometry as g
 from example_pcl import scene as sc
+from example_pcl import transforms
 from example_pcl.errors import PerceptionError
 
 CAN_R, CAN_H = 0.033, 0.122
@@ -81,9 +82,9 @@ class Setup:
         self.scene = sc.generate_scene(spec)
         self.truth = self.scene.truth
         patch = table_patch(self.scene, (0.15, -0.15), 0.02)
-        self.plane, self.T, _ = g.refine_plane(self.scene.xyz, g.patch_plane(patch), z_eps=0.01)
+        self.plane, self.T, _, _ = g.refine_plane(self.scene.xyz, g.patch_plane(patch), z_eps=0.01)
         _, self.in_plane = g.plane_inliers(self.scene.xyz, self.T, 0.01)
-        T_plane_sensor = g.invert_transform(self.T)
+        T_plane_sensor = transforms.invert(self.T)
         self.sensor = T_plane_sensor[:3, 3]
         base = T_plane_sensor[:3, :3] @ np.array(self.truth["cans"][0]["base_center"]) + T_plane_sensor[:3, 3]
         self.center = base[:2]
@@ -255,22 +256,50 @@ def test_plane_frame_orthonormal_right_handed_x_near_sensor_x(normal):
         assert R[1, 0] == pytest.approx(np.sqrt(1 - n[1] ** 2), abs=1e-9)
 
 
+def test_subsample_keeps_the_same_fraction_organized_or_not():
+    """subsample keeps every step-th pixel of an organized cloud in both directions and every
+    step^2-th point of an unorganized one: about 1 / step^2 of the points either way, as views."""
+    xyz = np.arange(48 * 64 * 3, dtype=np.float32).reshape(48, 64, 3)
+    grid = g.subsample(xyz, 4)
+    assert grid.shape == (12, 16, 3) and np.shares_memory(grid, xyz)
+    assert_array_equal(grid[1, 2], xyz[4, 8])
+    flat = g.subsample(xyz.reshape(-1, 3), 4)
+    assert flat.shape == (48 * 64 // 16, 3) and np.shares_memory(flat, xyz)
+    assert_array_equal(flat[1], xyz.reshape(-1, 3)[16])
+    assert g.subsample(xyz, 1).shape == g.subsample(xyz, 0).shape == xyz.shape
+
+
+def test_plane_through_turns_toward_the_viewpoint():
+    """Plane.through keeps a normal facing the viewpoint and flips one facing away, d flipping with
+    it: normal . centroid + d = 0 and the viewpoint on the positive side either way."""
+    centroid = np.array([0.1, 0.2, 1.0])
+    for normal in (np.array([0.0, -0.6, -0.8]), np.array([0.0, 0.6, 0.8])):
+        plane = g.Plane.through(normal, centroid, np.zeros(3), curvature=0.01, n_points=7)
+        assert_allclose(plane.normal, (0.0, -0.6, -0.8))
+        assert plane.signed_distance(centroid) == pytest.approx(0.0, abs=1e-12)
+        assert plane.signed_distance(np.zeros(3)) > 0 and (plane.curvature, plane.n_points) == (0.01, 7)
+
+
+@pytest.mark.parametrize("bad", [(0, 0), (np.nan, 0, 1), (1, 2, 3, 4)])
+def test_vector_helpers_reject_bad_input(bad):
+    """as_vector3 and unit_vector name the argument when it is not 3 finite numbers; unit_vector
+    also refuses zero; as_points_float32 refuses anything but (N, 3) or (H, W, 3)."""
+    with pytest.raises(PerceptionError, match="thing must be 3 finite numbers"):
+        g.as_vector3(bad, "thing")
+    with pytest.raises(PerceptionError, match="thing"):
+        g.unit_vector((0, 0, 0), "thing")
+    assert_allclose(g.unit_vector((0, 3, 4), "thing"), (0, 0.6, 0.8))
+    with pytest.raises(PerceptionError, match="shape"):
+        g.as_points_float32(np.zeros((4, 2)))
+    pts = np.zeros((5, 3), np.float32)
+    assert g.as_points_float32(pts) is pts
+
+
 @pytest.mark.parametrize("normal", [(0, 0, 0), (np.nan, 0, 1), (1, 2)])
 def test_plane_frame_rejects_bad_normal(normal):
     """A zero, non-finite or wrongly sized normal raises PerceptionError."""
     with pytest.raises(PerceptionError):
         g.plane_frame(normal, (0, 0, 0))
-
-
-def test_invert_transform_is_inverse():
-    """invert_transform(T) @ T and T @ invert_transform(T) are the identity; it equals np.linalg.inv."""
-    rng = np.random.default_rng(7)
-    for _ in range(10):
-        T = random_rigid(rng)
-        Ti = g.invert_transform(T)
-        assert_allclose(Ti @ T, np.eye(4), atol=1e-12)
-        assert_allclose(T @ Ti, np.eye(4), atol=1e-12)
-        assert_allclose(Ti, np.linalg.inv(T), atol=1e-12)
 
 
 def test_plane_inliers_match_numpy_reference():
@@ -322,10 +351,11 @@ def test_refine_plane_from_small_noisy_patch(setup):
     """A 2 cm noisy table patch, refined, gives the table normal within 0.3 deg and d within 2 mm."""
     patch = table_patch(setup.scene, (-0.1, -0.1), 0.01)
     start = g.patch_plane(patch)
-    plane, T, inliers = g.refine_plane(setup.scene.xyz, start, z_eps=0.01)
+    plane, T, inliers, passes = g.refine_plane(setup.scene.xyz, start, z_eps=0.01)
     angle, offset = truth_errors(plane, setup.truth)
     assert angle < 0.3 and offset < 0.002
     assert len(inliers) > 100000
+    assert 1 <= passes <= 3
     assert_allclose(T[:3, 2], plane.normal)
     assert plane.signed_distance(T[:3, 3]) == pytest.approx(0.0, abs=1e-9)  # frame origin on the plane
 
@@ -341,7 +371,7 @@ def test_refine_plane_from_tilted_patch(setup, tilt_deg, axis):
     centroid = patch.mean(axis=0)
     start = g.Plane(normal=normal, d=float(-normal @ centroid), centroid=centroid, curvature=0.0, n_points=len(patch))
     assert truth_errors(start, setup.truth)[0] == pytest.approx(abs(tilt_deg), abs=0.01)
-    plane, _, _ = g.refine_plane(setup.scene.xyz, start, z_eps=0.01)
+    plane, _, _, _ = g.refine_plane(setup.scene.xyz, start, z_eps=0.01)
     angle, offset = truth_errors(plane, setup.truth)
     assert angle < 0.3 and offset < 0.002
 
