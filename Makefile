@@ -7,6 +7,7 @@ WS          := $(CURDIR)/build/ws
 DEVEL_SETUP := $(WS)/devel/setup.bash
 IN_DEVEL    := bash -c 'source $(DEVEL_SETUP) && exec "$$@"' --
 PYTEST_ARGS ?=
+BUILD_BENCH ?= OFF
 
 .PHONY: setup build demo test unit bench screenshots clean
 
@@ -22,7 +23,8 @@ build: setup
 	@find $(WS)/src/example_pcl -maxdepth 1 -type l -delete
 	@for entry in $(filter-out $(CURDIR)/build,$(wildcard $(CURDIR)/*)); do ln -s $$entry $(WS)/src/example_pcl/; done
 	@if [ ! -f $(WS)/build/CMakeCache.txt ]; then rm -rf $(WS)/build; fi
-	@cd $(WS) && catkin_make -DPYTHON_EXECUTABLE=$(PYTHON) -DCMAKE_BUILD_TYPE=Release > $(WS)/catkin_make.log 2>&1 \
+	@cd $(WS) && catkin_make -DPYTHON_EXECUTABLE=$(PYTHON) -DCMAKE_BUILD_TYPE=Release \
+	  -DEXAMPLE_PCL_BUILD_BENCH=$(BUILD_BENCH) > $(WS)/catkin_make.log 2>&1 \
 	  || { tail -n 60 $(WS)/catkin_make.log; echo "build failed: full log in $(WS)/catkin_make.log"; exit 1; }
 	@echo "build: ok ($(WS))"
 
@@ -36,6 +38,8 @@ unit: build
 	@$(IN_DEVEL) $(PYTHON) -m pytest test/unit $(PYTEST_ARGS)
 
 # Open3D (not in Debian) goes into a benchmark-only venv; the figures are written into README.md.
+# The C++ benchmark programs (bench/*.cpp) are built only here (BUILD_BENCH=ON reaches `build`).
+bench: BUILD_BENCH = ON
 bench: build
 	@bench_python=$$(tools/bench_env.sh build/bench-venv) && \
 	  PCD_IO_PCL=$(WS)/devel/lib/example_pcl/bench/pcd_io_pcl $(IN_DEVEL) $$bench_python bench/run_all.py

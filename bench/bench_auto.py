@@ -7,7 +7,7 @@ depth noise, dropout and projector shadows. Objects are laid out so none hides a
 camera and all are in the image (every can is findable). For each scene:
 
 * ours: auto_finder.find_cans on the organized cloud, timed;
-* PCL: bench/pcl_cylinder_segmentation (built by `make build`), PCL's cylinder_segmentation
+* PCL: bench/pcl_cylinder_segmentation (built by `make bench`), PCL's cylinder_segmentation
   tutorial on the scene written to a temporary PCD: PassThrough (keeping depths up to the table
   top's far edge + 5 cm, known from the ground truth: the tutorial's 1.5 m is its workspace; ours
   cuts most of the floor, which PCL would otherwise take for the plane), NormalEstimation (k = 50),
@@ -258,7 +258,7 @@ def main(argv=None):
                      f"many cylinders one after the other; only points 0.01-0.4 m above its plane kept): normals alone "
                      f"{1e3 * statistics.median(pcl_normals):.0f} ms median.")
     elif not program:
-        lines.append("PCL's pipeline not run: bench/pcl_cylinder_segmentation not built (`make build`).")
+        lines.append("PCL's pipeline not run: bench/pcl_cylinder_segmentation not built (`make bench` builds it).")
     lines.append("")
     lines.append(machine_line())
     text = "\n".join(lines)

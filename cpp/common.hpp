@@ -1,5 +1,20 @@
-// Shared helpers of example_pcl._native: checking NumPy arrays at the boundary and viewing them
-// as Eigen matrices without copying.
+// Shared helpers of example_pcl._native: checking NumPy arrays at the boundary and reading them
+// in place, whatever their strides.
+//
+// GIL policy, the one every binding follows:
+//   The caller's arrays (and any other Python object) are read and written only while the GIL is
+//   held. A binding checks its arguments (shape, dtype, range: TypeError / ValueError naming what
+//   it got), then either
+//   - does its work right there, GIL held, when it is one pass over the points (transform_cloud,
+//     the z filters, extract, centroid, squared_distances): no copy, and a Kinect frame takes
+//     about a millisecond, what the copy that would let it release the GIL costs anyway; or
+//   - copies what it needs into private C++ containers (a pcl::PointCloud, std::vector, the PCD
+//     writer's buffers), releases the GIL (py::gil_scoped_release) around the heavy work on those
+//     copies only (PCL's RANSAC, k-d tree, normals, union-find, file reading and writing, LZF),
+//     and takes it back before building the Python results.
+//   So no other Python thread can change an array under a binding that is reading it (NumPy has
+//   no locks: a torn read would be silent), and long work still lets other threads run (pcd_save
+//   writes on several threads, find_can answers services while a cloud is processed).
 #pragma once
 
 #include <pybind11/numpy.h>
@@ -10,6 +25,7 @@
 #include <cstdint>
 #include <sstream>
 #include <string>
+#include <vector>
 
 namespace example_pcl {
 
@@ -51,7 +67,7 @@ PointView point_view(const py::array& points, bool writable = false);
 // returns them as int64 (a copy only when the dtype differs).
 py::array_t<std::int64_t> checked_indices(const py::array& indices, py::ssize_t n);
 
-void bind_io(py::module_& m);
+void bind_io(py::module_& m);  // PCD files; the binary_compressed body is made in pcd_compressed.cpp
 void bind_transforms(py::module_& m);
 void bind_features(py::module_& m);
 void bind_segmentation(py::module_& m);

@@ -1,4 +1,5 @@
-// Surface normals through PCL's NormalEstimation.
+// Surface normals through PCL's NormalEstimation: the points are copied into a PCL cloud with the
+// GIL held, and PCL works on that copy with the GIL released (common.hpp's GIL policy).
 #include <pcl/features/normal_3d.h>
 #include <pcl/point_cloud.h>
 #include <pcl/point_types.h>
@@ -7,23 +8,10 @@
 #include <optional>
 
 #include "common.hpp"
+#include "finite_cloud.hpp"
 
 namespace example_pcl {
 namespace {
-
-// The finite points of `points` (optionally only those at `indices`) as a PCL cloud: PCL needs its
-// own 16-byte point layout, and a selection is small, so the copy is cheap.
-pcl::PointCloud<pcl::PointXYZ> finite_cloud(const PointView& v, const std::optional<py::array_t<std::int64_t>>& idx) {
-  pcl::PointCloud<pcl::PointXYZ> cloud;
-  const py::ssize_t count = idx ? idx->size() : v.size();
-  cloud.reserve(static_cast<size_t>(count));
-  for (py::ssize_t j = 0; j < count; ++j) {
-    const py::ssize_t i = idx ? idx->data()[j] : j;
-    const float x = v.flat_coord(i, 0), y = v.flat_coord(i, 1), z = v.flat_coord(i, 2);
-    if (std::isfinite(x) && std::isfinite(y) && std::isfinite(z)) cloud.push_back(pcl::PointXYZ(x, y, z));
-  }
-  return cloud;
-}
 
 py::tuple compute_point_normal(const py::array& points, std::optional<py::array> indices) {
   const PointView v = point_view(points);
@@ -32,20 +20,17 @@ py::tuple compute_point_normal(const py::array& points, std::optional<py::array>
   Eigen::Vector4f plane;
   float curvature = 0.f;
   bool ok = false;
-  size_t n = 0;
-  {
-    py::gil_scoped_release nogil;
-    const auto cloud = finite_cloud(v, idx);
-    n = cloud.size();
-    if (n >= 3) {
-      pcl::Indices all(n);
-      for (size_t i = 0; i < n; ++i) all[i] = static_cast<pcl::index_t>(i);
-      pcl::NormalEstimation<pcl::PointXYZ, pcl::Normal> estimator;
-      ok = estimator.computePointNormal(cloud, all, plane, curvature);
-    }
-  }
+  const FiniteCloud finite = finite_cloud(v, idx);  // the private copy, made with the GIL held
+  const size_t n = finite.cloud->size();
   if (n < 3)
     throw std::invalid_argument("a normal needs at least 3 finite points, got " + std::to_string(n));
+  {
+    py::gil_scoped_release nogil;
+    pcl::Indices all(n);
+    for (size_t i = 0; i < n; ++i) all[i] = static_cast<pcl::index_t>(i);
+    pcl::NormalEstimation<pcl::PointXYZ, pcl::Normal> estimator;
+    ok = estimator.computePointNormal(*finite.cloud, all, plane, curvature);
+  }
   if (!ok || !plane.allFinite()) throw std::invalid_argument("PCL could not fit a plane to the points");
   py::array_t<float> params(4);
   Eigen::Map<Eigen::Vector4f>(params.mutable_data()) = plane;

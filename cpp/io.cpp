@@ -1,10 +1,9 @@
 // PCD files through PCL's own reader and writer (pcl::PCDReader / pcl::PCDWriter on
 // pcl::PCLPointCloud2), so every field, the organized width x height and the viewpoint are kept
-// exactly as PCL keeps them. binary_compressed is the one body written here rather than by PCL
-// (PCL's header, PCL's lzfCompress, PCL's layout; see write_binary_compressed). The Python side
+// exactly as PCL keeps them. binary_compressed is the one body made here rather than by PCL
+// (PCL's header, PCL's lzfCompress, PCL's layout; see pcd_compressed.cpp). The Python side
 // (example_pcl.pcd) turns the raw buffer and field list into a NumPy structured array.
 #include <pcl/PCLPointCloud2.h>
-#include <pcl/io/lzf.h>
 #include <pcl/io/pcd_io.h>
 
 #include <algorithm>
@@ -16,12 +15,11 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-#include <system_error>
-#include <thread>
 #include <utility>
 #include <vector>
 
 #include "common.hpp"
+#include "pcd_compressed.hpp"
 
 namespace example_pcl {
 namespace {
@@ -183,142 +181,6 @@ py::dict read_pcd(const std::string& path) {
   return out;
 }
 
-// ---- binary_compressed --------------------------------------------------------------------------
-// PCL's layout (PCDWriter::writeBinaryCompressed and PCDReader::readBodyBinary, PCL 1.13): the
-// header of generateHeaderBinaryCompressed, "DATA binary_compressed\n", uint32 compressed size,
-// uint32 uncompressed size, then the LZF-compressed points stored field-major: every point's
-// first field, then every point's second field, ... (fields named "_" are padding and left out).
-// PCL's own writer spends most of its ~100 ms per Kinect frame putting the compressed bytes into
-// its ostream one put() at a time and copying each field with a library memcpy; here the fields
-// are gathered in cache-sized blocks of points and the bytes written straight to the file.
-//
-// The compression is split over threads: LZF's tokens are literal runs and back-references into
-// output already produced, and a compressor given one chunk refers only to that chunk, so chunks
-// compressed independently and concatenated form one valid LZF stream of the whole (PCL's
-// lzfDecompress keeps no state between tokens; it only checks a reference does not reach before
-// the start of its output). Only the compression ratio can change, and only at chunk seams.
-
-// Bytes whose resize() leaves them uninitialised (every byte is written before it is read): a
-// Kinect frame's buffers would otherwise be zeroed, 10 MB a frame, only to be overwritten.
-template <typename T>
-struct UninitializedAllocator : std::allocator<T> {
-  template <typename U>
-  struct rebind {
-    using other = UninitializedAllocator<U>;
-  };
-  template <typename U>
-  void construct(U* p) noexcept {
-    ::new (static_cast<void*>(p)) U;
-  }
-  template <typename U, typename... Args>
-  void construct(U* p, Args&&... args) {
-    ::new (static_cast<void*>(p)) U(std::forward<Args>(args)...);
-  }
-};
-using Bytes = std::vector<std::uint8_t, UninitializedAllocator<std::uint8_t>>;
-
-// One field as the compressed body stores it: its bytes within a point, and how many.
-struct FieldBytes {
-  size_t offset, size;
-};
-
-// Copies `size` bytes known at compile time, so the compiler emits plain moves.
-template <size_t Size>
-void gather_field(const std::uint8_t* src, size_t step, size_t begin, size_t end, std::uint8_t* dst) {
-  for (size_t i = begin; i < end; ++i) std::memcpy(dst + i * Size, src + i * step, Size);
-}
-
-void gather_field(const std::uint8_t* src, size_t step, size_t size, size_t begin, size_t end, std::uint8_t* dst) {
-  switch (size) {
-    case 1: return gather_field<1>(src, step, begin, end, dst);
-    case 2: return gather_field<2>(src, step, begin, end, dst);
-    case 4: return gather_field<4>(src, step, begin, end, dst);
-    case 8: return gather_field<8>(src, step, begin, end, dst);
-    case 12: return gather_field<12>(src, step, begin, end, dst);
-    case 16: return gather_field<16>(src, step, begin, end, dst);
-    default:
-      for (size_t i = begin; i < end; ++i) std::memcpy(dst + i * size, src + i * step, size);
-  }
-}
-
-// The points (point_step bytes each, fields at their offsets) rearranged field-major, as PCL's
-// compressed body stores them. Blocks of points small enough to stay in cache are read once for
-// all their fields.
-Bytes to_field_major(const std::uint8_t* data, size_t points, size_t point_step,
-                     const std::vector<FieldBytes>& fields) {
-  size_t point_bytes = 0;
-  for (const auto& f : fields) point_bytes += f.size;
-  Bytes out(points * point_bytes);
-  std::vector<std::uint8_t*> planes;
-  size_t plane_offset = 0;
-  for (const auto& f : fields) {
-    planes.push_back(out.data() + plane_offset);
-    plane_offset += f.size * points;
-  }
-  constexpr size_t kBlock = 2048;  // points: 64 KB of 32-byte points
-  for (size_t begin = 0; begin < points; begin += kBlock) {
-    const size_t end = std::min(points, begin + kBlock);
-    for (size_t j = 0; j < fields.size(); ++j)
-      gather_field(data + fields[j].offset, point_step, fields[j].size, begin, end, planes[j]);
-  }
-  return out;
-}
-
-// The most lzfCompress can produce from n bytes: one control byte per 32 literals when nothing
-// repeats (liblzf's LZF_MAX_COMPRESSED_SIZE is n * 33 / 32 + 1), plus slack for tiny inputs.
-size_t lzf_bound(size_t n) { return n + n / 32 + 16; }
-
-// The compressed body (the two sizes, then the LZF stream) of `body`, compressed in `chunks`
-// pieces on as many threads (0: one per core, none smaller than 256 KiB). Returns the pieces to
-// write in order; `error` says why not when compression fails.
-std::vector<Bytes> compress_body(const Bytes& body, size_t chunks, std::string& error) {
-  const size_t n = body.size();
-  if (chunks == 0) {
-    constexpr size_t kMinChunk = 256 * 1024;
-    chunks = std::max<size_t>(1, std::min<size_t>(std::thread::hardware_concurrency(), n / kMinChunk));
-  }
-  chunks = std::max<size_t>(1, std::min(chunks, std::max<size_t>(n, 1)));
-  std::vector<Bytes> out(chunks + 1);
-  std::vector<size_t> begin(chunks + 1);
-  for (size_t k = 0; k <= chunks; ++k) begin[k] = n * k / chunks;  // sizes differ by at most one byte
-  for (size_t k = 0; k < chunks; ++k) out[k + 1].resize(lzf_bound(begin[k + 1] - begin[k]));
-  std::vector<unsigned int> produced(chunks, 0);
-  auto compress = [&](size_t k) {
-    const size_t size = begin[k + 1] - begin[k];
-    if (size > 0)
-      produced[k] = pcl::lzfCompress(body.data() + begin[k], static_cast<unsigned int>(size), out[k + 1].data(),
-                                     static_cast<unsigned int>(out[k + 1].size()));
-  };
-  {
-    std::vector<std::thread> threads;
-    size_t k = 1;
-    try {
-      for (; k < chunks; ++k) threads.emplace_back(compress, k);
-    } catch (const std::system_error&) {  // no more threads to be had: the other chunks on this one
-      for (; k < chunks; ++k) compress(k);
-    }
-    compress(0);
-    for (auto& t : threads) t.join();
-  }
-  std::uint64_t total = 0;
-  for (size_t k = 0; k < chunks; ++k) {
-    if (produced[k] == 0 && begin[k + 1] > begin[k]) {
-      error = "LZF compression failed";
-      return {};
-    }
-    out[k + 1].resize(produced[k]);
-    total += produced[k];
-  }
-  if (total > std::numeric_limits<std::uint32_t>::max()) {
-    error = "the compressed data (" + std::to_string(total) + " bytes) does not fit binary_compressed's 32-bit size";
-    return {};
-  }
-  const std::uint32_t sizes[2] = {static_cast<std::uint32_t>(total), static_cast<std::uint32_t>(n)};
-  out[0].resize(sizeof(sizes));
-  std::memcpy(out[0].data(), sizes, sizeof(sizes));
-  return out;
-}
-
 void write_pcd(const std::string& path, const py::buffer& data, const py::list& fields, std::uint32_t width,
                std::uint32_t height, std::uint32_t point_step, bool is_dense, const std::array<float, 3>& origin,
                const std::array<float, 4>& orientation, const std::string& format, int precision, int threads) {
@@ -343,6 +205,13 @@ void write_pcd(const std::string& path, const py::buffer& data, const py::list& 
     cloud.fields.push_back(f);
   }
   const py::buffer_info buf = data.request();
+  py::ssize_t contiguous_stride = buf.itemsize;
+  for (py::ssize_t d = buf.ndim - 1; d >= 0; --d) {
+    if (buf.shape[d] > 1 && buf.strides[d] != contiguous_stride)
+      throw std::invalid_argument("data must be a C-contiguous buffer (e.g. points.view(np.uint8) of a contiguous "
+                                  "array), got strides that skip bytes");
+    contiguous_stride *= buf.shape[d];
+  }
   const size_t nbytes = static_cast<size_t>(buf.size) * buf.itemsize;
   if (nbytes != static_cast<size_t>(width) * height * point_step)
     throw std::invalid_argument("data has " + std::to_string(nbytes) + " bytes, width x height x point_step is " +
@@ -350,7 +219,7 @@ void write_pcd(const std::string& path, const py::buffer& data, const py::list& 
   if (format != "ascii" && format != "binary" && format != "binary_compressed")
     throw std::invalid_argument("format must be ascii, binary or binary_compressed, got '" + format + "'");
   if (threads < 0)
-    throw std::invalid_argument("threads must be >= 0 (0 = one per core), got " + std::to_string(threads));
+    throw std::invalid_argument("threads must be >= 0 (0 = one chunk per core), got " + std::to_string(threads));
   const Eigen::Vector4f o(origin[0], origin[1], origin[2], 0.f);
   const Eigen::Quaternionf q(orientation[0], orientation[1], orientation[2], orientation[3]);
   const auto* bytes = static_cast<const std::uint8_t*>(buf.ptr);
@@ -426,8 +295,8 @@ Raises ValueError naming the file when it is missing, truncated or malformed.)do
 data: any buffer of width * height * point_step bytes; fields: list of (name, offset, datatype,
 count); origin: (x, y, z) metres; orientation: (w, x, y, z); format: "ascii", "binary" or
 "binary_compressed"; precision: significant digits of floats in ascii; threads: binary_compressed
-compresses in this many chunks on as many threads (0 = one per core, no chunk under 256 KiB); any
-value gives a file PCL reads to the same points.
+compresses in this many chunks (0 = one per core, no chunk under 256 KiB) on at most
+min(cores, chunks, 8) threads; any value gives a file PCL reads to the same points.
 Headers are PCL's (generateHeaderBinary, generateHeaderBinaryCompressed); ascii is PCL's
 writeASCII; the binary_compressed body is PCL's layout compressed with PCL's lzfCompress. The
 bytes go out with checked write()s, so a full disk is an error, never a crash or a cut file.

@@ -1,5 +1,6 @@
 // example_pcl._native: thin pybind11 bindings over PCL and Eigen for example_pcl's per-point work.
-// NumPy arrays in and out; the areas live one per file (io, transforms, features, segmentation).
+// NumPy arrays in and out; the areas live one per file (io, transforms, features, segmentation),
+// each following the GIL policy stated in common.hpp.
 #include "common.hpp"
 
 namespace example_pcl {
@@ -55,6 +56,8 @@ py::array_t<std::int64_t> checked_indices(const py::array& indices, py::ssize_t 
 
 PYBIND11_MODULE(_native, m) {
   m.doc() = "Thin bindings over PCL and Eigen for example_pcl: NumPy arrays in and out, metres throughout.";
+  // package.xml's <version>, passed in by CMakeLists.txt.
+  m.attr("__version__") = EXAMPLE_PCL_VERSION;
   example_pcl::bind_io(m);
   example_pcl::bind_transforms(m);
   example_pcl::bind_features(m);

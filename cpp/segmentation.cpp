@@ -1,5 +1,7 @@
 // Segmentation: model fitting by RANSAC through PCL's SACSegmentation, and clustering (PCL's
-// Euclidean cluster extraction, and connected components on the organized grid).
+// Euclidean cluster extraction, and connected components on the organized grid). Each copies the
+// finite points it needs with the GIL held and releases the GIL only around the work on that
+// copy (common.hpp's GIL policy).
 #include <pcl/ModelCoefficients.h>
 #include <pcl/search/kdtree.h>
 #include <pcl/segmentation/extract_clusters.h>
@@ -17,6 +19,7 @@
 #include <vector>
 
 #include "common.hpp"
+#include "finite_cloud.hpp"
 
 namespace example_pcl {
 namespace {
@@ -26,46 +29,35 @@ py::tuple segment_plane(const py::array& points, double distance_threshold, int 
   const PointView v = point_view(points);
   if (!(distance_threshold > 0)) throw std::invalid_argument("distance_threshold must be > 0 (metres)");
   if (max_iterations < 1) throw std::invalid_argument("max_iterations must be >= 1");
-  auto cloud = std::make_shared<pcl::PointCloud<pcl::PointXYZ>>();
-  std::vector<std::int64_t> original;  // cloud index -> index into the flattened input
+  const FiniteCloud finite = finite_cloud(v);
+  if (finite.cloud->size() < 3) throw std::invalid_argument("plane segmentation needs at least 3 finite points");
   pcl::ModelCoefficients coefficients;
   pcl::PointIndices inliers;
   {
     py::gil_scoped_release nogil;
-    cloud->reserve(static_cast<size_t>(v.size()));
-    original.reserve(static_cast<size_t>(v.size()));
-    for (py::ssize_t i = 0; i < v.size(); ++i) {
-      const float x = v.flat_coord(i, 0), y = v.flat_coord(i, 1), z = v.flat_coord(i, 2);
-      if (!(std::isfinite(x) && std::isfinite(y) && std::isfinite(z))) continue;
-      cloud->push_back(pcl::PointXYZ(x, y, z));
-      original.push_back(i);
+    pcl::SACSegmentation<pcl::PointXYZ> seg;
+    seg.setOptimizeCoefficients(true);
+    seg.setMethodType(pcl::SAC_RANSAC);
+    seg.setDistanceThreshold(distance_threshold);
+    seg.setMaxIterations(max_iterations);
+    seg.setProbability(probability);
+    if (axis) {
+      seg.setModelType(pcl::SACMODEL_PERPENDICULAR_PLANE);
+      seg.setAxis(Eigen::Vector3f((*axis)[0], (*axis)[1], (*axis)[2]));
+      seg.setEpsAngle(eps_angle);
+    } else {
+      seg.setModelType(pcl::SACMODEL_PLANE);
     }
-    if (cloud->size() >= 3) {
-      pcl::SACSegmentation<pcl::PointXYZ> seg;
-      seg.setOptimizeCoefficients(true);
-      seg.setMethodType(pcl::SAC_RANSAC);
-      seg.setDistanceThreshold(distance_threshold);
-      seg.setMaxIterations(max_iterations);
-      seg.setProbability(probability);
-      if (axis) {
-        seg.setModelType(pcl::SACMODEL_PERPENDICULAR_PLANE);
-        seg.setAxis(Eigen::Vector3f((*axis)[0], (*axis)[1], (*axis)[2]));
-        seg.setEpsAngle(eps_angle);
-      } else {
-        seg.setModelType(pcl::SACMODEL_PLANE);
-      }
-      seg.setInputCloud(cloud);
-      seg.segment(inliers, coefficients);
-    }
+    seg.setInputCloud(finite.cloud);
+    seg.segment(inliers, coefficients);
   }
-  if (cloud->size() < 3) throw std::invalid_argument("plane segmentation needs at least 3 finite points");
   if (inliers.indices.empty() || coefficients.values.size() != 4)
     throw std::invalid_argument("no plane found");
   py::array_t<float> plane(4);
   std::copy(coefficients.values.begin(), coefficients.values.end(), plane.mutable_data());
   py::array_t<std::int64_t> idx(static_cast<py::ssize_t>(inliers.indices.size()));
   auto* p = idx.mutable_data();
-  for (size_t i = 0; i < inliers.indices.size(); ++i) p[i] = original[static_cast<size_t>(inliers.indices[i])];
+  for (size_t i = 0; i < inliers.indices.size(); ++i) p[i] = finite.original[static_cast<size_t>(inliers.indices[i])];
   return py::make_tuple(plane, idx);
 }
 
@@ -95,21 +87,11 @@ py::list euclidean_clusters(const py::array& points, double tolerance, py::ssize
   check_cluster_sizes(min_points, max_points);
   std::optional<py::array_t<std::int64_t>> idx;
   if (indices) idx = checked_indices(*indices, v.size());
+  const FiniteCloud finite = finite_cloud(v, idx);
+  const auto& cloud = finite.cloud;
   std::vector<std::vector<std::int64_t>> clusters;
   {
     py::gil_scoped_release nogil;
-    auto cloud = std::make_shared<pcl::PointCloud<pcl::PointXYZ>>();
-    std::vector<std::int64_t> original;  // cloud index -> index into the flattened input
-    const py::ssize_t count = idx ? idx->size() : v.size();
-    cloud->reserve(static_cast<size_t>(count));
-    original.reserve(static_cast<size_t>(count));
-    for (py::ssize_t j = 0; j < count; ++j) {
-      const py::ssize_t i = idx ? idx->data()[j] : j;
-      const float x = v.flat_coord(i, 0), y = v.flat_coord(i, 1), z = v.flat_coord(i, 2);
-      if (!(std::isfinite(x) && std::isfinite(y) && std::isfinite(z))) continue;
-      cloud->push_back(pcl::PointXYZ(x, y, z));
-      original.push_back(i);
-    }
     if (!cloud->empty()) {
       auto tree = std::make_shared<pcl::search::KdTree<pcl::PointXYZ>>();
       tree->setInputCloud(cloud);
@@ -124,7 +106,7 @@ py::list euclidean_clusters(const py::array& points, double tolerance, py::ssize
       for (const auto& f : found) {
         std::vector<std::int64_t> c;
         c.reserve(f.indices.size());
-        for (const auto k : f.indices) c.push_back(original[static_cast<size_t>(k)]);
+        for (const auto k : f.indices) c.push_back(finite.original[static_cast<size_t>(k)]);
         std::sort(c.begin(), c.end());
         clusters.push_back(std::move(c));
       }
@@ -158,24 +140,22 @@ py::list organized_clusters(const py::array& points, double max_distance, py::ss
   check_cluster_sizes(min_points, max_points);
   if (v.size() >= std::numeric_limits<std::int32_t>::max())
     throw std::invalid_argument("points has too many pixels for organized_clusters, got " + describe(points));
+  // The grid copied (contiguous, 12 bytes a pixel) with the GIL held, with which pixels take part.
+  const py::ssize_t H = v.rows, W = v.cols;
+  std::vector<Eigen::Vector3f> xyz(static_cast<size_t>(H * W));
+  std::vector<std::uint8_t> in(static_cast<size_t>(H * W), 0);
+  for (py::ssize_t r = 0; r < H; ++r)
+    for (py::ssize_t c = 0; c < W; ++c) {
+      const float x = v.coord(r, c, 0), y = v.coord(r, c, 1), z = v.coord(r, c, 2);
+      const auto i = static_cast<size_t>(r * W + c);
+      xyz[i] = Eigen::Vector3f(x, y, z);
+      in[i] = std::isfinite(x) && std::isfinite(y) && std::isfinite(z) && z >= z_min && z <= z_max;
+    }
   std::vector<std::vector<std::int64_t>> clusters;
   {
     py::gil_scoped_release nogil;
-    const py::ssize_t H = v.rows, W = v.cols;
     const float d2 = static_cast<float>(max_distance * max_distance);
-    std::vector<std::uint8_t> in(static_cast<size_t>(H * W), 0);
-    for (py::ssize_t r = 0; r < H; ++r)
-      for (py::ssize_t c = 0; c < W; ++c) {
-        const float x = v.coord(r, c, 0), y = v.coord(r, c, 1), z = v.coord(r, c, 2);
-        in[static_cast<size_t>(r * W + c)] =
-            std::isfinite(x) && std::isfinite(y) && std::isfinite(z) && z >= z_min && z <= z_max;
-      }
     DisjointSets sets(static_cast<size_t>(H * W));
-    auto near = [&](py::ssize_t r0, py::ssize_t c0, py::ssize_t r1, py::ssize_t c1) {
-      const float dx = v.coord(r0, c0, 0) - v.coord(r1, c1, 0), dy = v.coord(r0, c0, 1) - v.coord(r1, c1, 1),
-                  dz = v.coord(r0, c0, 2) - v.coord(r1, c1, 2);
-      return dx * dx + dy * dy + dz * dz <= d2;
-    };
     // Each pixel is joined to its already-visited neighbours: left, and the row above (up-left,
     // up, up-right with `diagonal`).
     for (py::ssize_t r = 0; r < H; ++r)
@@ -185,7 +165,8 @@ py::list organized_clusters(const py::array& points, double max_distance, py::ss
         auto join = [&](py::ssize_t r1, py::ssize_t c1) {
           if (r1 < 0 || c1 < 0 || c1 >= W) return;
           const py::ssize_t j = r1 * W + c1;
-          if (in[static_cast<size_t>(j)] && near(r, c, r1, c1))
+          if (in[static_cast<size_t>(j)] &&
+              (xyz[static_cast<size_t>(i)] - xyz[static_cast<size_t>(j)]).squaredNorm() <= d2)
             sets.unite(static_cast<std::int32_t>(i), static_cast<std::int32_t>(j));
         };
         join(r, c - 1);

@@ -1,5 +1,6 @@
 // Rigid transforms, z filters, index extraction and centroids over float32 point arrays, read in
-// place through PointView (no copy of the input, whatever its strides).
+// place through PointView (no copy of the input, whatever its strides). Each is one pass over the
+// points, so each runs with the GIL held (see the GIL policy in common.hpp).
 #include <Eigen/Geometry>
 #include <cmath>
 #include <memory>
@@ -32,16 +33,13 @@ py::array_t<std::int64_t> indices_where(const py::array& points, Keep keep) {
   py::array_t<std::int64_t> out(v.size());  // uninitialised; shrunk to the kept count below
   std::int64_t* const first = out.mutable_data();
   std::int64_t* o = first;
-  {
-    py::gil_scoped_release nogil;
-    std::int64_t i = 0;
-    for (py::ssize_t r = 0; r < v.rows; ++r) {
-      const char* z = v.data + r * v.row_stride + 2 * v.coord_stride;
-      for (py::ssize_t c = 0; c < v.cols; ++c, ++i, z += v.col_stride) {
-        // Branch-free: write every index, advance only past the kept ones.
-        *o = i;
-        o += keep(*reinterpret_cast<const float*>(z));
-      }
+  std::int64_t i = 0;
+  for (py::ssize_t r = 0; r < v.rows; ++r) {
+    const char* z = v.data + r * v.row_stride + 2 * v.coord_stride;
+    for (py::ssize_t c = 0; c < v.cols; ++c, ++i, z += v.col_stride) {
+      // Branch-free: write every index, advance only past the kept ones.
+      *o = i;
+      o += keep(*reinterpret_cast<const float*>(z));
     }
   }
   out.resize({static_cast<py::ssize_t>(o - first)}, false);
@@ -65,17 +63,14 @@ py::array transform_cloud(const py::array& points, const py::array& transform, s
                                 describe(points));
   const Eigen::Matrix3f R = T.linear();
   const Eigen::Vector3f t = T.translation();
-  {
-    py::gil_scoped_release nogil;
-    for (py::ssize_t r = 0; r < in.rows; ++r)
-      for (py::ssize_t c = 0; c < in.cols; ++c) {
-        // Read the whole point before writing: out may be points itself (in place).
-        const Eigen::Vector3f p(in.coord(r, c, 0), in.coord(r, c, 1), in.coord(r, c, 2));
-        const Eigen::Vector3f q = R * p + t;
-        char* d = const_cast<char*>(dst.data) + r * dst.row_stride + c * dst.col_stride;
-        for (int k = 0; k < 3; ++k) *reinterpret_cast<float*>(d + k * dst.coord_stride) = q[k];
-      }
-  }
+  for (py::ssize_t r = 0; r < in.rows; ++r)
+    for (py::ssize_t c = 0; c < in.cols; ++c) {
+      // Read the whole point before writing: out may be points itself (in place).
+      const Eigen::Vector3f p(in.coord(r, c, 0), in.coord(r, c, 1), in.coord(r, c, 2));
+      const Eigen::Vector3f q = R * p + t;
+      char* d = const_cast<char*>(dst.data) + r * dst.row_stride + c * dst.col_stride;
+      for (int k = 0; k < 3; ++k) *reinterpret_cast<float*>(d + k * dst.coord_stride) = q[k];
+    }
   return result;
 }
 
@@ -85,11 +80,8 @@ py::array_t<float> extract(const py::array& points, const py::array& indices) {
   py::array_t<float> out({idx.size(), static_cast<py::ssize_t>(3)});
   float* o = out.mutable_data();
   const std::int64_t* p = idx.data();
-  {
-    py::gil_scoped_release nogil;
-    for (py::ssize_t i = 0; i < idx.size(); ++i)
-      for (int k = 0; k < 3; ++k) o[3 * i + k] = v.flat_coord(p[i], k);
-  }
+  for (py::ssize_t i = 0; i < idx.size(); ++i)
+    for (int k = 0; k < 3; ++k) o[3 * i + k] = v.flat_coord(p[i], k);
   return out;
 }
 
@@ -99,15 +91,12 @@ py::array_t<double> centroid(const py::array& points, std::optional<py::array> i
   if (indices) idx = checked_indices(*indices, v.size());
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();
   py::ssize_t n = 0;
-  {
-    py::gil_scoped_release nogil;
-    const py::ssize_t count = idx ? idx->size() : v.size();
-    for (py::ssize_t j = 0; j < count; ++j) {
-      const py::ssize_t i = idx ? idx->data()[j] : j;
-      if (!finite3(v, i)) continue;
-      sum += Eigen::Vector3d(v.flat_coord(i, 0), v.flat_coord(i, 1), v.flat_coord(i, 2));
-      ++n;
-    }
+  const py::ssize_t count = idx ? idx->size() : v.size();
+  for (py::ssize_t j = 0; j < count; ++j) {
+    const py::ssize_t i = idx ? idx->data()[j] : j;
+    if (!finite3(v, i)) continue;
+    sum += Eigen::Vector3d(v.flat_coord(i, 0), v.flat_coord(i, 1), v.flat_coord(i, 2));
+    ++n;
   }
   if (n == 0) throw std::invalid_argument("centroid of no finite points (" + describe(points) + ")");
   py::array_t<double> c(3);
@@ -123,12 +112,9 @@ py::array_t<float> squared_distances(const py::array& points, const py::array& c
   const Eigen::Vector3f ctr(c.data()[0], c.data()[1], c.data()[2]);
   py::array_t<float> out(v.leading_shape);
   float* o = out.mutable_data();
-  {
-    py::gil_scoped_release nogil;
-    for (py::ssize_t i = 0; i < v.size(); ++i) {
-      const Eigen::Vector3f d(v.flat_coord(i, 0) - ctr[0], v.flat_coord(i, 1) - ctr[1], v.flat_coord(i, 2) - ctr[2]);
-      o[i] = d.squaredNorm();  // NaN stays NaN; inf gives inf
-    }
+  for (py::ssize_t i = 0; i < v.size(); ++i) {
+    const Eigen::Vector3f d(v.flat_coord(i, 0) - ctr[0], v.flat_coord(i, 1) - ctr[1], v.flat_coord(i, 2) - ctr[2]);
+    o[i] = d.squaredNorm();  // NaN stays NaN; inf gives inf
   }
   return out;
 }

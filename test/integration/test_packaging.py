@@ -2,6 +2,7 @@
 import ctypes
 import os
 import pathlib
+import re
 import shutil
 import socket
 import subprocess
@@ -79,10 +80,10 @@ def test_fresh_workspace_devel_and_install_spaces(tmp_path, foreign_python):
     ws = tmp_path / "catkin_ws"
     copy_package(ws / "src" / "example_pcl")
     env = dict(clean_ros_env(foreign_python), PWD=str(ws))  # catkin_make takes the workspace from $PWD
-    build = subprocess.run(["catkin_make", f"-DPYTHON_EXECUTABLE={ROS_PYTHON}", "-DEXAMPLE_PCL_BUILD_BENCH=OFF",
-                            "install"], cwd=ws, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-                           timeout=900)
+    build = subprocess.run(["catkin_make", f"-DPYTHON_EXECUTABLE={ROS_PYTHON}", "install"], cwd=ws, env=env,
+                           stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, timeout=900)
     assert build.returncode == 0, build.stdout[-6000:]
+    assert not (ws / "devel/lib/example_pcl/bench").exists()  # benchmark programs only when asked (make bench)
 
     check = textwrap.dedent(f"""\
         set -e
@@ -111,3 +112,33 @@ def test_fresh_workspace_devel_and_install_spaces(tmp_path, foreign_python):
             assert (installed / script).read_text().startswith(f"#!{ROS_PYTHON}"), script
     assert (ws / "install" / "share" / "example_pcl" / "data" / "test_pcd.pcd").is_file()
     assert (ws / "install" / "share" / "example_pcl" / "launch" / "pcd_save.launch").is_file()
+
+    # catkin_make run_tests runs the registered suites (here one unit test, through PYTEST_ADDOPTS) and
+    # catkin_test_results finds their results; every rostest launch file is registered.
+    tests = subprocess.run(["catkin_make", "run_tests_example_pcl_pytest_unit"], cwd=ws, timeout=600,
+                           env=dict(env, PYTEST_ADDOPTS="-k test_version_is_package_xml"),
+                           stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    assert tests.returncode == 0, tests.stdout[-6000:]
+    results = subprocess.run(["catkin_test_results", "build/test_results"], cwd=ws, env=env,
+                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    assert results.returncode == 0 and "1 tests, 0 errors, 0 failures" in results.stdout, results.stdout
+    targets = subprocess.run(["make", "-C", "build", "help"], cwd=ws, env=env, stdout=subprocess.PIPE, text=True).stdout
+    for launch in (PROJECT / "test/integration").glob("*.test"):
+        assert f"run_tests_example_pcl_rostest_test_integration_{launch.name}" in targets, launch.name
+
+
+def test_every_script_is_installed():
+    """Every file in scripts/ is listed in CMakeLists.txt's catkin_install_python (the list is written out for catkin_lint)."""
+    cmake = (PROJECT / "CMakeLists.txt").read_text()
+    listed = re.search(r"catkin_install_python\(PROGRAMS(.*?)DESTINATION", cmake, re.S).group(1).split()
+    assert sorted(listed) == sorted(f"scripts/{p.name}" for p in (PROJECT / "scripts").iterdir() if p.is_file())
+
+
+@pytest.mark.skipif(shutil.which("catkin_lint") is None, reason="catkin_lint missing: apt-get install catkin-lint")
+def test_catkin_lint_finds_nothing(tmp_path):
+    """catkin_lint, notices included (-W2), reports no problem in the package."""
+    checkout = tmp_path / "example_pcl"  # catkin_lint wants the package's directory named after it
+    checkout.symlink_to(PROJECT)
+    proc = subprocess.run(["catkin_lint", "-W2", "--strict", str(checkout)], stdout=subprocess.PIPE,
+                          stderr=subprocess.STDOUT, text=True, timeout=120)
+    assert proc.returncode == 0 and "found 0 problems" in proc.stdout, proc.stdout

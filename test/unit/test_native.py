@@ -293,3 +293,30 @@ def test_cluster_arguments_checked(call, error):
     """Bad shapes, dtypes, distances, sizes and indices raise at the boundary."""
     with pytest.raises(error):
         call()
+
+
+def test_version_is_package_xml():
+    """_native.__version__ is package.xml's <version>, passed in by CMake."""
+    import pathlib
+    import xml.etree.ElementTree as ET
+    package_xml = pathlib.Path(__file__).resolve().parents[2] / "package.xml"
+    assert _native.__version__ == ET.parse(package_xml).getroot().findtext("version").strip()
+
+
+def test_every_binding_documented_with_keyword_names():
+    """Every function of _native has a docstring and names all its arguments (no pybind11 arg0, arg1...)."""
+    functions = [name for name in dir(_native) if callable(getattr(_native, name)) and not name.startswith("_")]
+    assert functions
+    for name in functions:
+        doc = getattr(_native, name).__doc__
+        signature, _, text = doc.partition("\n")
+        assert signature.startswith(f"{name}(") and text.strip(), name
+        assert "arg0" not in signature, signature
+
+
+def test_write_pcd_rejects_a_strided_buffer(tmp_path):
+    """write_pcd reads data as contiguous bytes, so a buffer with gaps is refused, not written wrong."""
+    points = np.zeros((10, 6), np.float32)[:, :3]
+    with pytest.raises(ValueError, match="C-contiguous"):
+        _native.write_pcd(str(tmp_path / "s.pcd"), points, [("x", 0, 7, 1), ("y", 4, 7, 1), ("z", 8, 7, 1)],
+                          10, 1, 12, True, (0.0, 0.0, 0.0), (1.0, 0.0, 0.0, 0.0))

@@ -345,16 +345,34 @@ assert (pcd.read_pcd(sys.argv[1]).points.view(np.uint8) == points.view(np.uint8)
 """
 
 
+def copy_package_for_anyone(dest):
+    """The imported example_pcl package (its Python files and _native, from every directory of its
+    __path__: src/ and the devel space) copied into dest, readable by every user; returns dest.
+    The checkout itself may sit under a directory only its owner can enter."""
+    import example_pcl
+    package = os.path.join(dest, "example_pcl")
+    for source in reversed(list(example_pcl.__path__)):  # src/ last: its __init__.py is the package's
+        shutil.copytree(source, package, dirs_exist_ok=True, ignore=shutil.ignore_patterns("__pycache__"))
+    for root, dirs, files in os.walk(dest):
+        for name in dirs + files:
+            os.chmod(os.path.join(root, name), 0o755)
+    return dest
+
+
 @pytest.mark.skipif(os.geteuid() != 0 or not shutil.which("setpriv") or not shutil.which("prlimit"),
                     reason="running as another user with a process limit needs root, setpriv and prlimit")
 def test_compressed_without_threads_to_be_had():
     """When no thread can be started (RLIMIT_NPROC), the chunks are compressed on the calling thread."""
     out = tempfile.mkdtemp(prefix="pcd_no_threads_")
     try:
-        os.chmod(out, 0o777)
+        os.chmod(out, 0o755)
+        site = copy_package_for_anyone(os.path.join(out, "site"))
+        os.mkdir(os.path.join(out, "w"), 0o777)
+        os.chmod(os.path.join(out, "w"), 0o777)
+        env = dict(os.environ, OPENBLAS_NUM_THREADS="1", PYTHONPATH=site)
         proc = subprocess.run(["setpriv", "--reuid=65534", "--regid=65534", "--clear-groups", "prlimit", "--nproc=1",
-                               sys.executable, "-c", NO_THREADS_PROBE, os.path.join(out, "n.pcd")],
-                              env=dict(os.environ, OPENBLAS_NUM_THREADS="1"), capture_output=True, text=True)
+                               sys.executable, "-c", NO_THREADS_PROBE, os.path.join(out, "w", "n.pcd")],
+                              env=env, cwd=out, capture_output=True, text=True)
         assert proc.returncode == 0, proc.stderr
     finally:
         shutil.rmtree(out, ignore_errors=True)
