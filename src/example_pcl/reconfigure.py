@@ -54,3 +54,15 @@ def finder_from_values(finder, values):
     log = [f"{k} {old} -> {new}" for k, (old, new) in changes.items()]
     log += [f"{AUTO_PREFIX if k in shared else ''}{k} {old} -> {new}" for k, (old, new) in auto_changes.items()]
     return updated, log
+
+
+def param_names(finder):
+    """Every name finder_from_values takes for a FinderConfig: the operator steps' scalar fields,
+    then the automatic search's (``auto_``-prefixed where the names clash)."""
+    def scalar(config):
+        return [f.name for f in dataclasses.fields(config)
+                if not isinstance(getattr(config, f.name), (tuple, list)) and getattr(config, f.name) is not None
+                and not dataclasses.is_dataclass(getattr(config, f.name))]
+
+    operator = scalar(finder)
+    return operator + [AUTO_PREFIX + n if n in operator else n for n in scalar(finder.auto)]

@@ -65,3 +65,10 @@ def test_replace_fields_ignores_unknown_names_and_structured_fields():
     """Names that are no field, and tuple fields (viewpoint), are left alone."""
     config, changes = replace_fields(FinderConfig(), {"groups": {}, "viewpoint": 3, "nothing": 1})
     assert changes == {} and config == FinderConfig()
+
+
+def test_param_names_are_the_cfg_names():
+    """The ~params find_can reads at start-up are exactly FindCan.cfg's parameters."""
+    from example_pcl.reconfigure import param_names
+
+    assert sorted(param_names(FinderConfig())) == sorted(n for n in generated.defaults if n != "groups")
