@@ -430,8 +430,9 @@ def _parser():
 
 
 def main(argv=None):
-    """find_cans SCENE.pcd [options]: prints the result as JSON; returns the exit status (0 also
-    when no can is found, 1 when the file cannot be read or holds no table)."""
+    """find_cans SCENE.pcd [options]: prints the result as JSON (in the file's frame, the sensor at
+    its VIEWPOINT); returns the exit status (0 also when no can is found, 1 when the file cannot be
+    read or holds no table)."""
     args = _parser().parse_args(argv)
     from example_pcl.pcd import read_pcd  # the extension reads PCD; keep --help free of it
 
@@ -441,7 +442,9 @@ def main(argv=None):
     try:
         config.validate()
         cloud = read_pcd(args.scene)
-        result = find_cans(cloud.xyz, config=config)
+        # PCD's VIEWPOINT records where the sensor was: normals turn toward it and the depth noise
+        # grows with the range from it, also for a scene saved in a fixed frame.
+        result = find_cans(cloud.xyz, viewpoint=cloud.origin, config=config)
     except (PerceptionError, OSError) as e:
         print(f"find_cans: {args.scene}: {e}", file=sys.stderr)
         return 1

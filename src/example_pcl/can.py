@@ -23,7 +23,9 @@ class Can:
     iterations: of the fit (0 for mode 2's guess and for mode 4, whose fit is not continued);
     converged: of the fit (True for mode 2's guess, which is not iterated); shape_error (mode 4
     only, else None): the systematic radial deviation (see auto_finder.shape_error); indices
-    (mode 4 only, else None): int64 indices of its cluster's points into the flattened cloud.
+    (mode 4 only, else None): int64 indices of its cluster's points into the flattened cloud;
+    support: what the can stands on ("table", or the object below it); base_seen: False when the
+    base was hidden and inferred from the support.
     """
 
     T_sensor_from_can: np.ndarray
@@ -38,6 +40,8 @@ class Can:
     converged: bool = True
     shape_error: Optional[float] = None
     indices: Optional[np.ndarray] = field(default=None, repr=False)
+    support: str = "table"
+    base_seen: bool = True
 
     @property
     def base_center(self):
@@ -55,4 +59,5 @@ class Can:
                 "height": self.height, "rms_error": self.rms_error, "shape_error": self.shape_error,
                 "arc_coverage": self.arc_coverage, "n_points": self.n_points, "n_fit_points": self.n_fit_points,
                 "center_plane": np.asarray(self.center_plane).tolist(), "iterations": self.iterations,
-                "converged": self.converged, "T_sensor_from_can": self.T_sensor_from_can.tolist()}
+                "converged": self.converged, "support": self.support, "base_seen": self.base_seen,
+                "T_sensor_from_can": self.T_sensor_from_can.tolist()}

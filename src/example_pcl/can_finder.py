@@ -128,14 +128,33 @@ class CanFinder:
     def __init__(self, scene, config=FinderConfig()):
         config.validate()
         self.config = config
+        self._selection = None
+        self._serial = 0
+        self.set_scene(scene)
+
+    def set_scene(self, scene):
+        """Takes a new scene (as the constructor's): the table and everything after it are
+        forgotten, the latest selection is kept (e.g. a live cloud replacing the last one)."""
         self.scene = geometry.as_points_float32(scene)
+        self._take_sample()
+        self.reset()
+
+    def set_config(self, config):
+        """Takes new tolerances (FinderConfig) for the next step; the state is kept. The size modes 2
+        and 3 fit follows the configured one unless mode 4 measured the can. Raises
+        PerceptionError (nothing changed) for a config that cannot work."""
+        config.validate()
+        config.auto.validate()
+        old, self.config = self.config, config
+        if (self.can_radius, self.can_height) == (old.can_radius, old.can_height):
+            self.can_radius, self.can_height = config.can_radius, config.can_height
+        self._take_sample()
+
+    def _take_sample(self):
         flat = self.scene.reshape(-1, 3)
         # The refinement's subsample, a strided view: every step^2-th point of the flattened scene
         # (the same points as every 16th for a 640x480 scene), at most refine_points of them.
-        self._sample = geometry.subsample(flat, int(np.ceil(np.sqrt(len(flat) / config.refine_points))))
-        self._selection = None
-        self._serial = 0
-        self.reset()
+        self._sample = geometry.subsample(flat, int(np.ceil(np.sqrt(len(flat) / self.config.refine_points))))
 
     # --- state ------------------------------------------------------------------------------------
 

@@ -4,11 +4,14 @@ PointCloud2 builders live in example_pcl.conversions (``xyz_to_cloud``, ``array_
 Transforms are 4x4 float64 ``T_frame_from_object`` (example_pcl.transforms); lengths in metres.
 Message classes import without a master, so all of this is testable without one.
 """
-from geometry_msgs.msg import Pose, PoseArray, PoseStamped
+from geometry_msgs.msg import Pose, PoseArray, PoseStamped, Vector3
+from shape_msgs.msg import SolidPrimitive
 from std_msgs.msg import Header
 from visualization_msgs.msg import Marker, MarkerArray
 
 from example_pcl import transforms
+from example_pcl.msg import Can as CanMsg
+from example_pcl.msg import CanArray
 
 CAN_NS = "can"  # the namespace of can_marker's single marker
 CANS_NS = "can_markers"  # the namespace of can_markers' markers, one id per can
@@ -92,3 +95,28 @@ def can_markers(cans, frame_id, stamp=None):
     markers += [can_marker(c.T_sensor_from_can, c.radius, c.height, frame_id, stamp, ns=CANS_NS, marker_id=i)
                 for i, c in enumerate(cans)]
     return MarkerArray(markers=markers)
+
+
+def cylinder_primitive(radius, height):
+    """shape_msgs/SolidPrimitive CYLINDER of radius and height (m), the form MoveIt's planning scene
+    takes. A primitive cylinder is centred on its pose: see can_shape_pose."""
+    shape = SolidPrimitive(type=SolidPrimitive.CYLINDER, dimensions=[0.0, 0.0])
+    shape.dimensions[SolidPrimitive.CYLINDER_HEIGHT] = float(height)
+    shape.dimensions[SolidPrimitive.CYLINDER_RADIUS] = float(radius)
+    return shape
+
+
+def can_message(can, track_id=0, age=0, confidence=1.0, velocity=(0.0, 0.0, 0.0)):
+    """example_pcl/Can of an example_pcl.can.Can: the pose (origin the base centre, z the axis), size,
+    fit quality, support and a SolidPrimitive CYLINDER. track_id, age (frames), confidence (0..1)
+    and velocity (m/s) are the tracker's; a single search gives id = its rank, age 0, confidence 1."""
+    return CanMsg(id=int(track_id), pose=pose(can.T_sensor_from_can), radius=float(can.radius),
+                  height=float(can.height), fit_rms=float(can.rms_error), visible_arc=float(can.arc_coverage),
+                  n_points=int(can.n_fit_points), age=int(age), confidence=float(confidence),
+                  velocity=Vector3(*(float(v) for v in velocity)), support=str(can.support),
+                  base_seen=bool(can.base_seen), shape=cylinder_primitive(can.radius, can.height))
+
+
+def can_array(cans, frame_id, stamp=None):
+    """example_pcl/CanArray of the cans (example_pcl.can.Can) of one search, ids 0, 1, ... in order."""
+    return CanArray(header=header(frame_id, stamp), cans=[can_message(c, i) for i, c in enumerate(cans)])

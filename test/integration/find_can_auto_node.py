@@ -32,10 +32,14 @@ import roslib.packages
 import rosnode
 import rospy
 import rostest
+from shape_msgs.msg import SolidPrimitive
+from visualization_msgs.msg import Marker
 from find_can_helpers import (PKG, call_mode, call_mode_until, find_can_node, pixel_rect, send_static_transforms,
                               table_rect)
 
 from example_pcl import scene as sc
+from example_pcl.msg import CanArray
+from example_pcl.select_patch import select_points
 from example_pcl.demo import FindCanClient, pose_error, walkthrough
 from example_pcl.messages import matrix_from_pose
 from example_pcl.pcd import write_cloud
@@ -295,8 +299,9 @@ class Auto(unittest.TestCase):
 
     def test_5_operator_modes_and_mode_4_share_outputs(self):
         """The walkthrough (modes 0-3) on the 33 mm can puts it on can_pose and can_marker; mode 4
-        then overwrites both with the best can (another one); the walkthrough again puts the 33 mm
-        can back. can_poses stays mode 4's."""
+        then overwrites both with the best can (another one), and publishes every can on can_poses
+        and cans (each with its SolidPrimitive); the walkthrough again puts the 33 mm can back, and its
+        mode 0 empties can_poses and cans: mode 4's cans are forgotten (issue 14)."""
         from geometry_msgs.msg import PoseArray
         from visualization_msgs.msg import Marker
 
@@ -323,10 +328,41 @@ class Auto(unittest.TestCase):
         self.assertLess(pose_error(pose, cans[self.best])[0], 3e-3)
         self.assertAlmostEqual(latest("/tilted", "can_marker", Marker).scale.x, 2 * cans[self.best]["radius"],
                                delta=2e-3)
-        walk()
         poses = latest("/tilted", "can_poses", PoseArray)
         self.assertEqual(len(poses.poses), 3)
         self.assertLess(can_errors(poses.poses[0], cans[self.best])[0], 3e-3)
+        found = latest("/tilted", "cans", CanArray)
+        self.assertEqual([c.id for c in found.cans], [0, 1, 2])
+        self.assertTrue(same_pose(found.cans[0].pose, poses.poses[0]))
+        shape = found.cans[0].shape
+        self.assertEqual(shape.type, SolidPrimitive.CYLINDER)
+        self.assertAlmostEqual(shape.dimensions[SolidPrimitive.CYLINDER_RADIUS], found.cans[0].radius)
+        self.assertAlmostEqual(shape.dimensions[SolidPrimitive.CYLINDER_HEIGHT], found.cans[0].height)
+        walk()
+        self.assertEqual(latest("/tilted", "can_poses", PoseArray).poses, [])
+        self.assertEqual(len(latest("/tilted", "cans", CanArray).cans), 1)  # the walked can, from mode 3
+
+    def test_8_a_new_table_forgets_the_can(self):
+        """After mode 0 starts a new walkthrough, no latched output shows the forgotten can: a new
+        subscriber gets no can_pose, can_markers holds only a DELETEALL, can_poses and cans are empty."""
+        from geometry_msgs.msg import PoseArray, PoseStamped
+        from visualization_msgs.msg import MarkerArray
+
+        scene = self.scenes["tilted"]
+        ok, message = call_mode("/tilted", 4)
+        self.assertTrue(ok, message)
+        self.assertEqual(len(latest("/tilted", "can_poses", PoseArray).poses), 3)
+        client = FindCanClient("/tilted", frame_id="tilted_camera")
+        client.select(select_points(scene.xyz, rect=table_rect(scene.labels)))
+        ok, message = call_mode("/tilted", 0)
+        self.assertTrue(ok, message)
+        time.sleep(1.0)
+        self.assertEqual(latest("/tilted", "can_poses", PoseArray).poses, [])
+        self.assertEqual(latest("/tilted", "cans", CanArray).cans, [])
+        self.assertEqual([m.action for m in latest("/tilted", "can_markers", MarkerArray).markers],
+                         [Marker.DELETEALL])
+        with self.assertRaises(rospy.ROSException):
+            rospy.wait_for_message("/tilted/can_pose", PoseStamped, timeout=2.0)
 
     def test_6_no_can_scene(self):
         """A table with only a box: mode 4 answers success=False saying no can was found and why

@@ -308,3 +308,26 @@ def test_cli_unreadable_file_exits_1(tmp_path, capsys):
     assert af.main([str(tmp_path / "missing.pcd")]) == 1
     captured = capsys.readouterr()
     assert captured.out == "" and "missing.pcd" in captured.err
+
+
+def test_cli_honours_the_pcd_viewpoint(tmp_path, capsys):
+    """A scene saved in a robot's base frame (on the floor, below the table), its VIEWPOINT the camera's
+    pose there: the can is found at its true place (normals turned toward the recorded sensor, not
+    toward the frame's origin under the table)."""
+    from scipy.spatial.transform import Rotation
+
+    from example_pcl.pcd import write_cloud
+
+    scene = sc.generate_scene(SCENES["one soda can, 1 m"])
+    base_from_table = np.array([0.3, -0.2, scene.truth["table"]["height"]])  # the table top in the base frame
+    T_table_from_camera = np.linalg.inv(np.asarray(scene.truth["camera_from_table"]))
+    R, t = T_table_from_camera[:3, :3], T_table_from_camera[:3, 3] + base_from_table
+    xyz_table = (scene.xyz.astype(float) @ R.T + t).astype(np.float32)
+    x, y, z, w = Rotation.from_matrix(R).as_quat()
+    path = tmp_path / "base_frame.pcd"
+    write_cloud(str(path), xyz_table, fmt="binary", origin=tuple(t), orientation=(w, x, y, z))
+    assert af.main([str(path)]) == 0
+    cans = json.loads(capsys.readouterr().out)["cans"]
+    assert len(cans) == 1
+    assert_allclose(cans[0]["base_center"], base_from_table, atol=CENTRE_TOLERANCE)
+    assert_allclose(cans[0]["axis"], [0.0, 0.0, 1.0], atol=0.01)
