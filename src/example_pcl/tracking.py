@@ -30,6 +30,7 @@ target frame), with the frame's stamp (s), and keeps one :class:`Track` per can:
   starts afresh (TrackerUpdate.reset says why); a gap longer than ``max_gap`` keeps the tracks
   but forgets their velocities; a repeated stamp updates without prediction.
 """
+import dataclasses
 from dataclasses import dataclass, field
 from typing import List, Optional
 
@@ -116,6 +117,12 @@ class Track:
         projected onto the base (geometry.plane_frame)."""
         return g.plane_frame(self.axis, self.base_center)
 
+    def snapshot(self):
+        """A copy of the track as it is now, which later updates do not change."""
+        return dataclasses.replace(self, base_center=self.base_center.copy(), velocity=self.velocity.copy(),
+                                   axis=self.axis.copy(), steady=None, agile=None,
+                                   mean_innovation=self.mean_innovation.copy())
+
     @property
     def seen(self):
         """Whether a detection was assigned to the track in the last frame."""
@@ -124,7 +131,8 @@ class Track:
 
 @dataclass(frozen=True, eq=False)
 class TrackerUpdate:
-    """What one CanTracker.update did. tracks: every live track (seen or coasting), by id;
+    """What one CanTracker.update did. tracks: every live track (seen or coasting), by id, as
+    snapshots (later updates leave them as they were);
     started: ids of tracks started this frame; ended: ids dropped this frame (unseen for
     max_missed frames, or all of them on a reset); assignment: detection index -> track id for
     every detection; reset: why the tracks were reset ("" when not); events: notes for a log
@@ -151,8 +159,8 @@ class CanTracker:
 
     @property
     def tracks(self):
-        """The live tracks, by id."""
-        return list(self._tracks)
+        """The live tracks, by id (snapshots)."""
+        return [t.snapshot() for t in self._tracks]
 
     def reset(self):
         """Forgets every track and the last stamp (ids keep counting up). Returns the ended ids."""
@@ -224,7 +232,7 @@ class CanTracker:
             track.confidence = self._confidence(track)
         alive.sort(key=lambda t: t.id)
         self._tracks = alive
-        return TrackerUpdate(tracks=list(alive), started=started, ended=ended, assignment=assignment, reset=reset,
+        return TrackerUpdate(tracks=[t.snapshot() for t in alive], started=started, ended=ended, assignment=assignment, reset=reset,
                              events=events)
 
     # --- filter ---------------------------------------------------------------------------------
