@@ -72,7 +72,8 @@ class LocalFitConfig:
         """Raises PerceptionError naming the first value that makes no sense."""
         self.auto.validate()
         for name in ("table_step", "table_band", "table_iterations", "max_table_tilt", "max_table_shift",
-                     "region_margin", "max_radius_change", "max_fit_points", "fit_tolerance", "change_step", "min_new_points", "search_period"):
+                     "region_margin", "max_radius_change", "max_fit_points", "fit_tolerance", "change_step",
+                     "min_new_points", "search_period"):
             if not getattr(self, name) > 0:
                 raise PerceptionError(f"LocalFitConfig.{name} must be > 0, got {getattr(self, name)}")
         for name in ("roi_margin", "change_dilation"):

@@ -76,8 +76,8 @@ class TrackerConfig:
 
     def validate(self):
         """Raises PerceptionError naming the first value that makes no sense."""
-        for name in ("max_missed", "gate_distance", "radius_gate", "position_noise", "accel_noise", "max_accel", "init_speed",
-                     "lag_sigmas", "max_gap", "confirm_hits", "rms_limit"):
+        for name in ("max_missed", "gate_distance", "radius_gate", "position_noise", "accel_noise", "max_accel",
+                     "init_speed", "lag_sigmas", "max_gap", "confirm_hits", "rms_limit"):
             if not getattr(self, name) > 0:
                 raise PerceptionError(f"TrackerConfig.{name} must be > 0, got {getattr(self, name)}")
         for name in ("axis_gain", "size_gain", "lag_gain"):
@@ -232,8 +232,8 @@ class CanTracker:
             track.confidence = self._confidence(track)
         alive.sort(key=lambda t: t.id)
         self._tracks = alive
-        return TrackerUpdate(tracks=[t.snapshot() for t in alive], started=started, ended=ended, assignment=assignment, reset=reset,
-                             events=events)
+        return TrackerUpdate(tracks=[t.snapshot() for t in alive], started=started, ended=ended,
+                             assignment=assignment, reset=reset, events=events)
 
     # --- filter ---------------------------------------------------------------------------------
 
