@@ -1,0 +1,329 @@
+"""Fast per-frame refit of a known table and known cans: pure functions on NumPy arrays.
+
+Consecutive frames of a live stream are nearly the same, so a can found in one frame is looked
+for only near where it was in the next (issue 12). Given an organized cloud (float32 (H, W, 3),
+sensor frame, metres, NaN holes):
+
+1. **Table.** The previous table plane is refined by least squares on every ``table_step``-th
+   pixel within ``table_band`` of it (geometry.refine_plane); a plane that tilted more than
+   ``max_table_tilt`` or moved more than ``max_table_shift`` is a different scene.
+2. **Cans.** Each can is refitted from the pixels of a window around its previous footprint
+   (its previous points' bounding box grown by ``roi_margin`` px) that lie, in the new plane
+   frame, within its previous radius plus ``region_margin`` of its previous axis and between
+   ``min_height`` and ``max_height`` above the table: Levenberg-Marquardt (geometry.fit_cylinder)
+   from the previous circle on the side points, then auto_finder's criterion on radius, inlier
+   fraction, rms residual, shape error and visible arc, plus a radius change of at most
+   ``max_radius_change``.
+3. **Scene changed?** On a coarse grid (every ``change_step``-th pixel), the points standing on
+   the table (as auto_finder counts support: above ``min_height`` plus 3.5 sigma of depth noise,
+   below ``max_height``) that are in no can's region and were not already there at the last
+   full search (that mask grown by ``change_dilation`` cells, for a slowly moving camera) are
+   counted; ``min_new_points`` or more means something new stands there.
+
+:class:`LocalFinder` strings these together frame after frame and falls back on the full search
+(auto_finder.find_cans) on the first frame, every ``search_period`` frames, and whenever the
+table or a can is lost or the scene changed. Every length is in metres.
+"""
+import time
+from dataclasses import dataclass, field
+from typing import List, Optional
+
+import numpy as np
+from scipy import ndimage
+
+from example_pcl import _native
+from example_pcl import auto_finder as af
+from example_pcl import geometry as g
+from example_pcl.errors import PerceptionError
+
+
+@dataclass(frozen=True)
+class LocalFitConfig:
+    """Parameters of the local refit (see the module docstring). auto: the full search's
+    AutoConfig, whose object band (min_height, max_height), fit (fit_bottom, top_margin, r_eps,
+    noise model, iterations) and criterion the local fit shares.
+
+    Table: table_step (px), table_band (m), table_iterations; max_table_tilt (rad),
+    max_table_shift (m): how far the plane may move between frames.
+    Cans: roi_margin (px), region_margin (m), max_radius_change (m); max_fit_points: larger
+    sides are subsampled evenly (fewer than the full search's: the start is already close);
+    fit_tolerance (m): the fit stops at a shorter step.
+    Change: change_step (px), change_dilation (coarse cells), min_new_points.
+    search_period (frames): a full search at least this often (1: every frame).
+    """
+
+    auto: af.AutoConfig = field(default_factory=af.AutoConfig)
+    table_step: int = 8
+    table_band: float = 0.01
+    table_iterations: int = 1
+    max_table_tilt: float = 0.05
+    max_table_shift: float = 0.03
+    roi_margin: int = 12
+    region_margin: float = 0.015
+    max_radius_change: float = 0.005
+    max_fit_points: int = 300
+    fit_tolerance: float = 1e-4
+    change_step: int = 8
+    change_dilation: int = 2
+    min_new_points: int = 4
+    search_period: int = 30
+
+    def validate(self):
+        """Raises PerceptionError naming the first value that makes no sense."""
+        self.auto.validate()
+        for name in ("table_step", "table_band", "table_iterations", "max_table_tilt", "max_table_shift",
+                     "region_margin", "max_radius_change", "max_fit_points", "fit_tolerance", "change_step",
+                     "min_new_points", "search_period"):
+            if not getattr(self, name) > 0:
+                raise PerceptionError(f"LocalFitConfig.{name} must be > 0, got {getattr(self, name)}")
+        for name in ("roi_margin", "change_dilation"):
+            if getattr(self, name) < 0:
+                raise PerceptionError(f"LocalFitConfig.{name} must be >= 0, got {getattr(self, name)}")
+
+
+def _point(p):
+    p = np.asarray(p, dtype=float).reshape(-1)
+    if p.shape != (3,) or not np.isfinite(p).all():
+        raise PerceptionError(f"the viewpoint must be 3 finite numbers (m), got {p!r}")
+    return p
+
+
+def _organized(xyz):
+    pts = np.asarray(xyz)
+    if pts.ndim != 3 or pts.shape[2] != 3 or pts.dtype != np.float32:
+        raise PerceptionError(f"the local fit needs an organized float32 (H, W, 3) cloud, got {pts.dtype} "
+                              f"{pts.shape}")
+    return pts
+
+
+# --- table ----------------------------------------------------------------------------------------
+
+
+def refit_table(xyz, plane, config=LocalFitConfig(), viewpoint=(0.0, 0.0, 0.0)):
+    """The table near the previous plane: (Plane, T_sensor_from_plane).
+
+    xyz: float32 (H, W, 3) sensor frame (m); plane: the previous table Plane. Raises
+    PerceptionError when too few points lie near it or it tilted or moved too far.
+    """
+    pts = _organized(xyz)
+    s = int(config.table_step)
+    new, T, _ = g.refine_plane(pts[::s, ::s], plane, config.table_band, viewpoint,
+                               iterations=config.table_iterations)
+    tilt = float(np.arccos(np.clip(new.normal @ plane.normal, -1.0, 1.0)))
+    shift = abs(float(new.signed_distance(plane.centroid)))
+    if tilt > config.max_table_tilt or shift > config.max_table_shift:
+        raise PerceptionError(f"the table moved {1e3 * shift:.1f} mm and tilted {tilt:.3f} rad since the last frame")
+    return new, T
+
+
+# --- cans -----------------------------------------------------------------------------------------
+
+
+def pixel_window(indices, shape, margin):
+    """(row_start, row_stop, col_start, col_stop): the bounding box of flattened pixel indices
+    (int, into an image of shape (H, W, ...)) grown by margin (px), clipped to the image."""
+    height, width = shape[:2]
+    indices = np.asarray(indices, dtype=np.int64)
+    if indices.size == 0:
+        raise PerceptionError("a pixel window needs at least one pixel")
+    rows, cols = np.divmod(indices, width)
+    m = int(margin)
+    return (max(int(rows.min()) - m, 0), min(int(rows.max()) + m + 1, height),
+            max(int(cols.min()) - m, 0), min(int(cols.max()) + m + 1, width))
+
+
+def refit_can(xyz, T_sensor_from_plane, can, config=LocalFitConfig(), viewpoint=(0.0, 0.0, 0.0)):
+    """One can refitted near where it was: an auto_finder.CanDetection (sensor frame).
+
+    xyz: float32 (H, W, 3) sensor frame (m); T_sensor_from_plane: this frame's table frame; can:
+    the previous detection (base_center, radius, indices: flattened pixels of its points).
+    Raises PerceptionError saying why when the can is not there any more (too few points, no
+    circle, or the criterion fails).
+    """
+    c, a = config, config.auto
+    pts = _organized(xyz)
+    r0, r1, c0, c1 = pixel_window(can.indices, pts.shape, c.roi_margin)
+    T_plane_from_sensor = g.invert_transform(T_sensor_from_plane)
+    window = _native.transform_cloud(pts[r0:r1, c0:c1], T_plane_from_sensor)
+    center = T_plane_from_sensor[:3, :3] @ np.asarray(can.base_center, dtype=float) + T_plane_from_sensor[:3, 3]
+    with np.errstate(invalid="ignore"):
+        dx, dy, z = window[..., 0] - center[0], window[..., 1] - center[1], window[..., 2]
+        region = (dx * dx + dy * dy <= (can.radius + c.region_margin) ** 2) & (z > a.min_height) & (z <= a.max_height)
+    rows, cols = np.nonzero(region)
+    if len(rows) < a.min_fit_points:
+        raise PerceptionError(f"{len(rows)} point(s) where the can was (min {a.min_fit_points})")
+    points = window[rows, cols].astype(float)
+    z = points[:, 2]
+    top = int(0.99 * (len(z) - 1))
+    height = float(np.partition(z, top)[top])  # the 99th percentile, as the full search takes it
+    sensor = T_plane_from_sensor[:3, :3] @ _point(viewpoint) + T_plane_from_sensor[:3, 3]
+    sigma = a.noise_coefficient * float(np.sum((points.mean(axis=0) - sensor) ** 2))
+    side = points[(z >= a.fit_bottom + 3 * sigma) & (z <= height - a.top_margin - 3 * sigma)]
+    if len(side) < a.min_fit_points:
+        raise PerceptionError(f"{len(side)} side point(s) where the can was (min {a.min_fit_points})")
+    if len(side) > c.max_fit_points:
+        side = side[:: int(np.ceil(len(side) / c.max_fit_points))]
+    r_eps = max(a.r_eps, a.r_eps_sigmas * sigma)
+    fit = g.fit_cylinder(side[:, :2], center[:2], can.radius, r_eps, max_iterations=a.fit_iterations,
+                         tol=c.fit_tolerance, min_inliers=a.min_fit_points, max_shift=c.region_margin)
+    max_rms = max(a.max_rms, a.max_rms_sigmas * sigma)
+    if not a.min_radius <= fit.radius <= a.max_radius or abs(fit.radius - can.radius) > c.max_radius_change:
+        raise PerceptionError(f"radius {1e3 * fit.radius:.1f} mm (was {1e3 * can.radius:.1f} mm)")
+    if fit.n_inliers < a.min_inlier_fraction * len(side):
+        raise PerceptionError(f"only {fit.n_inliers} of {len(side)} side points on the circle")
+    if fit.rms_error > max_rms:
+        raise PerceptionError(f"rms residual {1e3 * fit.rms_error:.2f} mm > {1e3 * max_rms:.2f} mm")
+    if fit.arc_coverage < a.min_arc:
+        raise PerceptionError(f"side seen over {fit.arc_coverage:.2f} rad < {a.min_arc:.2f} rad")
+    shape = af.shape_error(side[fit.inliers, :2], fit.cx, fit.cy, fit.radius, a.shape_bins)
+    if shape > a.max_shape_error:
+        raise PerceptionError(f"shape error {1e3 * shape:.2f} mm > {1e3 * a.max_shape_error:.2f} mm (not round)")
+    T_can = g.can_pose(T_sensor_from_plane, fit.cx, fit.cy)
+    indices = (rows + r0).astype(np.int64) * pts.shape[1] + cols + c0
+    return af.CanDetection(base_center=T_can[:3, 3].copy(), axis=T_can[:3, 2].copy(), radius=fit.radius,
+                           height=height, rms_error=fit.rms_error,
+                           shape_error=shape,
+                           arc_coverage=fit.arc_coverage, n_points=len(rows), n_fit_points=fit.n_inliers,
+                           T_sensor_from_can=T_can, indices=indices)
+
+
+# --- scene change ---------------------------------------------------------------------------------
+
+
+def standing_grid(xyz, T_sensor_from_plane, config=LocalFitConfig(), viewpoint=(0.0, 0.0, 0.0)):
+    """Which pixels of the coarse grid (every change_step-th pixel) stand on the table: bool
+    (ceil(H / step), ceil(W / step)), and those points in the plane frame (float32, same grid)."""
+    pts = _organized(xyz)
+    s, a = int(config.change_step), config.auto
+    grid = _native.transform_cloud(pts[::s, ::s], g.invert_transform(T_sensor_from_plane))
+    v = pts[::s, ::s].astype(float) - _point(viewpoint)
+    sigma = a.noise_coefficient * np.einsum("ijk,ijk->ij", v, v)
+    with np.errstate(invalid="ignore"):
+        standing = (grid[..., 2] > a.min_height + 3.5 * sigma) & (grid[..., 2] < a.max_height)
+    return standing, grid
+
+
+def in_can_regions(grid, T_plane_from_sensor_cans, cans, margin):
+    """bool mask of plane-frame points (..., 3) within radius + margin (m) of any can's axis.
+    T_plane_from_sensor_cans: 4x4 taking the cans' sensor-frame base centres into the plane frame."""
+    inside = np.zeros(grid.shape[:-1], bool)
+    R, t = T_plane_from_sensor_cans[:3, :3], T_plane_from_sensor_cans[:3, 3]
+    with np.errstate(invalid="ignore"):
+        for can in cans:
+            cx, cy, _ = R @ np.asarray(can.base_center, dtype=float) + t
+            inside |= (grid[..., 0] - cx) ** 2 + (grid[..., 1] - cy) ** 2 <= (can.radius + margin) ** 2
+    return inside
+
+
+def new_standing_points(standing, grid, T_plane_from_sensor, cans, known, config=LocalFitConfig()):
+    """How many coarse-grid points stand on the table outside every can's region and outside
+    `known` (bool, the standing mask of the last full search without its cans; None: nothing
+    known) grown by change_dilation cells."""
+    new = standing & ~in_can_regions(grid, T_plane_from_sensor, cans, config.region_margin)
+    if known is not None and known.shape == new.shape and known.any():
+        if config.change_dilation > 0:
+            known = ndimage.binary_dilation(known, iterations=int(config.change_dilation))
+        new &= ~known
+    return int(np.count_nonzero(new))
+
+
+# --- frame after frame ----------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, eq=False)
+class FrameFit:
+    """One frame's result. cans: auto_finder.CanDetection list (sensor frame); table: Plane;
+    T_sensor_from_plane: 4x4; searched: whether the full search ran; reason: why it ran ("" when
+    not: "first frame", "periodic", "table lost: ...", "can k lost: ...", "scene changed: ...");
+    timings: seconds per stage (table, cans, change, search, total; a stage not run is absent)."""
+
+    cans: List[af.CanDetection]
+    table: g.Plane
+    T_sensor_from_plane: np.ndarray
+    searched: bool
+    reason: str
+    timings: dict
+
+
+class LocalFinder:
+    """Finds the table and the cans frame after frame: the local refit where it holds, the full
+    search (auto_finder.find_cans) where it does not (see the module docstring)."""
+
+    def __init__(self, config=LocalFitConfig(), viewpoint=(0.0, 0.0, 0.0)):
+        config.validate()
+        self.config = config
+        self.viewpoint = _point(viewpoint)
+        self.reset()
+
+    def reset(self):
+        """Forgets the table and the cans: the next frame runs the full search."""
+        self._table = None
+        self._T = None
+        self._cans = []
+        self._known = None
+        self._since_search = 0
+
+    def process(self, xyz):
+        """One organized frame (float32 (H, W, 3), sensor frame, m): a FrameFit. Raises
+        PerceptionError (and forgets everything) when even the full search finds no table."""
+        t0 = time.perf_counter()
+        pts = _organized(xyz)
+        timings = {}
+        reason = self._local(pts, timings)
+        if reason:
+            t = time.perf_counter()
+            try:
+                self._search(pts)
+            except PerceptionError:
+                self.reset()
+                raise
+            timings["search"] = time.perf_counter() - t
+        else:
+            self._since_search += 1
+        timings["total"] = time.perf_counter() - t0
+        return FrameFit(cans=list(self._cans), table=self._table, T_sensor_from_plane=self._T, searched=bool(reason),
+                        reason=reason, timings=timings)
+
+    def _local(self, pts, timings):
+        """Refits in place; returns why the full search must run instead ("" when it need not)."""
+        c = self.config
+        if self._table is None or (self._known is not None and self._known.shape != self._grid_shape(pts)):
+            return "first frame"
+        if self._since_search + 1 >= c.search_period:
+            return "periodic"
+        t = time.perf_counter()
+        try:
+            table, T = refit_table(pts, self._table, c, self.viewpoint)
+        except PerceptionError as e:
+            return f"table lost: {e}"
+        finally:
+            timings["table"] = time.perf_counter() - t
+        t = time.perf_counter()
+        cans = []
+        for k, can in enumerate(self._cans):
+            try:
+                cans.append(refit_can(pts, T, can, c, self.viewpoint))
+            except PerceptionError as e:
+                timings["cans"] = time.perf_counter() - t
+                return f"can {k} lost: {e}"
+        timings["cans"] = time.perf_counter() - t
+        t = time.perf_counter()
+        standing, grid = standing_grid(pts, T, c, self.viewpoint)
+        n_new = new_standing_points(standing, grid, g.invert_transform(T), cans, self._known, c)
+        timings["change"] = time.perf_counter() - t
+        if n_new >= c.min_new_points:
+            return f"scene changed: {n_new} new point(s) stand on the table"
+        self._table, self._T, self._cans = table, T, cans
+        return ""
+
+    def _grid_shape(self, pts):
+        s = int(self.config.change_step)
+        return (-(-pts.shape[0] // s), -(-pts.shape[1] // s))
+
+    def _search(self, pts):
+        result = af.find_cans(pts, self.viewpoint, self.config.auto)
+        self._table, self._T, self._cans = result.table, result.T_sensor_from_plane, list(result.cans)
+        standing, grid = standing_grid(pts, self._T, self.config, self.viewpoint)
+        self._known = standing & ~in_can_regions(grid, g.invert_transform(self._T), self._cans,
+                                                 self.config.region_margin)
+        self._since_search = 0

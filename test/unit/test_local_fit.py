@@ -1,0 +1,129 @@
+"""Unit tests of example_pcl.local_fit: the per-frame refit of a known table and known cans, the
+scene-change check, and LocalFinder's choice between refit and full search.
+
+Needs the compiled extension. Frames come from the default scene_sequence (rendered once, cached).
+"""
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from example_pcl import auto_finder as af
+from example_pcl import local_fit as lf
+from example_pcl import scene_sequence as ss
+from example_pcl.errors import PerceptionError
+
+
+@pytest.fixture(scope="module")
+def frames():
+    return ss.render_sequence()
+
+
+def nearest(cans, point):
+    return min(cans, key=lambda c: np.linalg.norm(c.base_center - np.asarray(point)))
+
+
+def test_pixel_window_bounds_and_clips():
+    """The window is the indices' bounding box grown by the margin, clipped to the image."""
+    width = 10
+    idx = np.array([2 * width + 3, 4 * width + 6])
+    assert lf.pixel_window(idx, (8, width), 1) == (1, 6, 2, 8)
+    assert lf.pixel_window(idx, (8, width), 5) == (0, 8, 0, 10)
+    with pytest.raises(PerceptionError):
+        lf.pixel_window([], (8, width), 1)
+
+
+def test_refit_table_follows_the_moving_camera(frames):
+    """The table refitted from the previous frame's plane is within 1 mm and 2 mrad of the
+    truth of the new frame."""
+    result = af.find_cans(frames[0].xyz)
+    plane, T = lf.refit_table(frames[1].xyz, result.table)
+    truth = frames[1].truth["table"]
+    assert abs(plane.d - truth["d"]) < 0.001
+    assert np.arccos(np.clip(plane.normal @ truth["normal"], -1, 1)) < 0.002
+    assert_allclose(T[:3, 2], plane.normal)
+
+
+def test_refit_table_rejects_a_different_plane(frames):
+    """A plane far from the previous one (here: shifted 5 cm) is a PerceptionError."""
+    table = af.find_cans(frames[0].xyz).table
+    far = type(table)(normal=table.normal, d=table.d + 0.05, centroid=table.centroid - 0.05 * table.normal,
+                      curvature=0.0, n_points=table.n_points)
+    with pytest.raises(PerceptionError):
+        lf.refit_table(frames[1].xyz, far, lf.LocalFitConfig(table_band=0.1, max_table_shift=0.03))
+
+
+def test_refit_can_near_where_it_was(frames):
+    """Each can of frame 10, refitted from frame 9's detections, is within 1 mm (centre) and
+    1 mm (radius) of the truth, and its new points lie where the can is."""
+    before = af.find_cans(frames[9].xyz)
+    plane, T = lf.refit_table(frames[10].xyz, before.table)
+    for truth in frames[10].truth["cans"]:
+        previous = nearest(before.cans, truth["base_center"])
+        can = lf.refit_can(frames[10].xyz, T, previous)
+        assert np.linalg.norm(can.base_center - truth["base_center"]) < 0.001
+        assert abs(can.radius - truth["radius"]) < 0.001
+        assert abs(can.height - truth["height"]) < 0.01
+        points = frames[10].xyz.reshape(-1, 3)[can.indices]
+        distance = np.linalg.norm(np.cross(points - can.base_center, can.axis), axis=1)
+        assert np.median(distance) < truth["radius"] + 0.005
+
+
+def test_refit_can_raises_when_the_can_is_gone(frames):
+    """A can removed since the last frame is a PerceptionError naming what is missing."""
+    spec = ss.SequenceSpec()
+    removed = next(c for c in spec.cans if c.last is not None)
+    before = af.find_cans(frames[removed.last].xyz)
+    truth = next(c for c in frames[removed.last].truth["cans"] if c["id"] == removed.truth_id)
+    previous = nearest(before.cans, truth["base_center"])
+    _, T = lf.refit_table(frames[removed.last + 1].xyz, before.table)
+    with pytest.raises(PerceptionError, match="where the can was"):
+        lf.refit_can(frames[removed.last + 1].xyz, T, previous)
+
+
+def test_new_standing_points_count_only_what_is_new(frames):
+    """A can that appears counts as new standing points; the same scene with that can known
+    (in a can region) or remembered (in the known mask) does not."""
+    spec = ss.SequenceSpec()
+    added = next(c for c in spec.cans if c.first > 0)
+    before, after = af.find_cans(frames[added.first - 1].xyz), af.find_cans(frames[added.first].xyz)
+    xyz = frames[added.first].xyz
+    standing, grid = lf.standing_grid(xyz, after.T_sensor_from_plane)
+    T_plane = np.linalg.inv(after.T_sensor_from_plane)
+    config = lf.LocalFitConfig()
+    assert lf.new_standing_points(standing, grid, T_plane, before.cans, None, config) >= config.min_new_points
+    assert lf.new_standing_points(standing, grid, T_plane, after.cans, None, config) < config.min_new_points
+    assert lf.new_standing_points(standing, grid, T_plane, before.cans, standing, config) == 0
+
+
+def test_local_finder_refits_and_searches_when_needed(frames):
+    """LocalFinder: a full search on the first frame and after search_period frames, local refits
+    in between (with table, cans and change timings) giving the same cans as the full search."""
+    finder = lf.LocalFinder(lf.LocalFitConfig(search_period=3))
+    fits = [finder.process(f.xyz) for f in frames[:4]]
+    assert [r.searched for r in fits] == [True, False, False, True]
+    assert fits[0].reason == "first frame" and fits[3].reason == "periodic"
+    assert set(fits[1].timings) == {"table", "cans", "change", "total"}
+    assert "search" in fits[0].timings
+    for f, r in zip(frames[:4], fits):
+        assert len(r.cans) == len(f.truth["cans"])
+        for truth in f.truth["cans"]:
+            assert np.linalg.norm(nearest(r.cans, truth["base_center"]).base_center - truth["base_center"]) < 0.001
+
+
+def test_local_finder_without_a_table_raises_and_forgets():
+    """A cloud with no table is a PerceptionError; the next good frame runs the full search."""
+    finder = lf.LocalFinder()
+    with pytest.raises(PerceptionError):
+        finder.process(np.full((48, 64, 3), np.nan, np.float32))
+
+
+def test_local_finder_needs_an_organized_float32_cloud():
+    with pytest.raises(PerceptionError, match="organized"):
+        lf.LocalFinder().process(np.zeros((100, 3), np.float32))
+
+
+@pytest.mark.parametrize("field,value", [("table_step", 0), ("search_period", 0), ("roi_margin", -1)])
+def test_bad_config_raises(field, value):
+    """A LocalFitConfig value out of range names itself."""
+    with pytest.raises(PerceptionError, match=field):
+        lf.LocalFinder(lf.LocalFitConfig(**{field: value}))
