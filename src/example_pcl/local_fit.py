@@ -34,6 +34,8 @@ from scipy import ndimage
 from example_pcl import _native
 from example_pcl import auto_finder as af
 from example_pcl import geometry as g
+from example_pcl import transforms
+from example_pcl.can import Can
 from example_pcl.errors import PerceptionError
 
 
@@ -107,7 +109,7 @@ def refit_table(xyz, plane, config=LocalFitConfig(), viewpoint=(0.0, 0.0, 0.0)):
     """
     pts = _organized(xyz)
     s = int(config.table_step)
-    new, T, _ = g.refine_plane(pts[::s, ::s], plane, config.table_band, viewpoint,
+    new, T, _, _ = g.refine_plane(pts[::s, ::s], plane, config.table_band, viewpoint,
                                iterations=config.table_iterations)
     tilt = float(np.arccos(np.clip(new.normal @ plane.normal, -1.0, 1.0)))
     shift = abs(float(new.signed_distance(plane.centroid)))
@@ -133,7 +135,7 @@ def pixel_window(indices, shape, margin):
 
 
 def refit_can(xyz, T_sensor_from_plane, can, config=LocalFitConfig(), viewpoint=(0.0, 0.0, 0.0)):
-    """One can refitted near where it was: an auto_finder.CanDetection (sensor frame).
+    """One can refitted near where it was: an example_pcl.can.Can (sensor frame).
 
     xyz: float32 (H, W, 3) sensor frame (m); T_sensor_from_plane: this frame's table frame; can:
     the previous detection (base_center, radius, indices: flattened pixels of its points).
@@ -143,9 +145,9 @@ def refit_can(xyz, T_sensor_from_plane, can, config=LocalFitConfig(), viewpoint=
     c, a = config, config.auto
     pts = _organized(xyz)
     r0, r1, c0, c1 = pixel_window(can.indices, pts.shape, c.roi_margin)
-    T_plane_from_sensor = g.invert_transform(T_sensor_from_plane)
+    T_plane_from_sensor = transforms.invert(T_sensor_from_plane)
     window = _native.transform_cloud(pts[r0:r1, c0:c1], T_plane_from_sensor)
-    center = T_plane_from_sensor[:3, :3] @ np.asarray(can.base_center, dtype=float) + T_plane_from_sensor[:3, 3]
+    center = transforms.apply(T_plane_from_sensor, np.asarray(can.base_center, dtype=float))
     with np.errstate(invalid="ignore"):
         dx, dy, z = window[..., 0] - center[0], window[..., 1] - center[1], window[..., 2]
         region = (dx * dx + dy * dy <= (can.radius + c.region_margin) ** 2) & (z > a.min_height) & (z <= a.max_height)
@@ -156,7 +158,7 @@ def refit_can(xyz, T_sensor_from_plane, can, config=LocalFitConfig(), viewpoint=
     z = points[:, 2]
     top = int(0.99 * (len(z) - 1))
     height = float(np.partition(z, top)[top])  # the 99th percentile, as the full search takes it
-    sensor = T_plane_from_sensor[:3, :3] @ _point(viewpoint) + T_plane_from_sensor[:3, 3]
+    sensor = transforms.apply(T_plane_from_sensor, _point(viewpoint))
     sigma = a.noise_coefficient * float(np.sum((points.mean(axis=0) - sensor) ** 2))
     side = points[(z >= a.fit_bottom + 3 * sigma) & (z <= height - a.top_margin - 3 * sigma)]
     if len(side) < a.min_fit_points:
@@ -180,11 +182,9 @@ def refit_can(xyz, T_sensor_from_plane, can, config=LocalFitConfig(), viewpoint=
         raise PerceptionError(f"shape error {1e3 * shape:.2f} mm > {1e3 * a.max_shape_error:.2f} mm (not round)")
     T_can = g.can_pose(T_sensor_from_plane, fit.cx, fit.cy)
     indices = (rows + r0).astype(np.int64) * pts.shape[1] + cols + c0
-    return af.CanDetection(base_center=T_can[:3, 3].copy(), axis=T_can[:3, 2].copy(), radius=fit.radius,
-                           height=height, rms_error=fit.rms_error,
-                           shape_error=shape,
-                           arc_coverage=fit.arc_coverage, n_points=len(rows), n_fit_points=fit.n_inliers,
-                           T_sensor_from_can=T_can, indices=indices)
+    return Can(T_sensor_from_can=T_can, radius=fit.radius, height=height, rms_error=fit.rms_error,
+               arc_coverage=fit.arc_coverage, n_points=len(rows), n_fit_points=fit.n_inliers,
+               center_plane=fit.center, shape_error=shape, indices=indices)
 
 
 # --- scene change ---------------------------------------------------------------------------------
@@ -195,7 +195,7 @@ def standing_grid(xyz, T_sensor_from_plane, config=LocalFitConfig(), viewpoint=(
     (ceil(H / step), ceil(W / step)), and those points in the plane frame (float32, same grid)."""
     pts = _organized(xyz)
     s, a = int(config.change_step), config.auto
-    grid = _native.transform_cloud(pts[::s, ::s], g.invert_transform(T_sensor_from_plane))
+    grid = _native.transform_cloud(pts[::s, ::s], transforms.invert(T_sensor_from_plane))
     v = pts[::s, ::s].astype(float) - _point(viewpoint)
     sigma = a.noise_coefficient * np.einsum("ijk,ijk->ij", v, v)
     with np.errstate(invalid="ignore"):
@@ -232,12 +232,12 @@ def new_standing_points(standing, grid, T_plane_from_sensor, cans, known, config
 
 @dataclass(frozen=True, eq=False)
 class FrameFit:
-    """One frame's result. cans: auto_finder.CanDetection list (sensor frame); table: Plane;
+    """One frame's result. cans: example_pcl.can.Can list (sensor frame); table: Plane;
     T_sensor_from_plane: 4x4; searched: whether the full search ran; reason: why it ran ("" when
     not: "first frame", "periodic", "table lost: ...", "can k lost: ...", "scene changed: ...");
     timings: seconds per stage (table, cans, change, search, total; a stage not run is absent)."""
 
-    cans: List[af.CanDetection]
+    cans: List[Can]
     table: g.Plane
     T_sensor_from_plane: np.ndarray
     searched: bool
@@ -309,7 +309,7 @@ class LocalFinder:
         timings["cans"] = time.perf_counter() - t
         t = time.perf_counter()
         standing, grid = standing_grid(pts, T, c, self.viewpoint)
-        n_new = new_standing_points(standing, grid, g.invert_transform(T), cans, self._known, c)
+        n_new = new_standing_points(standing, grid, transforms.invert(T), cans, self._known, c)
         timings["change"] = time.perf_counter() - t
         if n_new >= c.min_new_points:
             return f"scene changed: {n_new} new point(s) stand on the table"
@@ -324,6 +324,6 @@ class LocalFinder:
         result = af.find_cans(pts, self.viewpoint, self.config.auto)
         self._table, self._T, self._cans = result.table, result.T_sensor_from_plane, list(result.cans)
         standing, grid = standing_grid(pts, self._T, self.config, self.viewpoint)
-        self._known = standing & ~in_can_regions(grid, g.invert_transform(self._T), self._cans,
+        self._known = standing & ~in_can_regions(grid, transforms.invert(self._T), self._cans,
                                                  self.config.region_margin)
         self._since_search = 0

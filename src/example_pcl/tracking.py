@@ -3,7 +3,7 @@ assignment), knows nothing of ROS.
 
 :class:`CanTracker` takes each frame's detections - any objects with ``base_center`` (float (3,),
 m), ``axis`` (unit (3,)), ``radius``, ``height`` (m), ``rms_error`` (m), ``arc_coverage`` (rad) and
-``n_fit_points``, as auto_finder's CanDetection has - all in one frame (the sensor's or a fixed
+``n_fit_points``, as example_pcl.can.Can has - all in one frame (the sensor's or a fixed
 target frame), with the frame's stamp (s), and keeps one :class:`Track` per can:
 
 * **Association.** Each track's base centre is predicted to the new stamp; detections are

@@ -19,7 +19,7 @@ RATE = 30.0  # Hz
 
 
 def can(center, radius=0.033, height=0.12, axis=(0.0, 0.0, 1.0), rms=0.001, arc=3.0):
-    """A detection with the attributes the tracker reads (CanDetection's)."""
+    """A detection with the attributes the tracker reads (example_pcl.can.Can's)."""
     return SimpleNamespace(base_center=np.asarray(center, dtype=float), axis=np.asarray(axis, dtype=float),
                            radius=radius, height=height, rms_error=rms, arc_coverage=arc, n_fit_points=300)
 
