@@ -20,6 +20,7 @@ from example_pcl import messages, transforms
 from example_pcl.can_finder import CanFinder, FinderConfig, Mode, describe_modes
 from example_pcl.errors import PerceptionError, warning_kind
 from example_pcl.reconfigure import finder_from_values, param_names
+from example_pcl.resources import default_scene_path
 
 SCENE_TOPIC = "kinect_pointcloud"
 MODEL_TOPIC = "plane_model"
@@ -34,17 +35,6 @@ SELECTED_TOPIC = "selected_points"
 CLICKED_TOPIC = "clicked_point"
 SERVICE = "process_mode"
 MAX_SELECTION_POINTS = 2_000_000  # more is a runaway publisher, not an operator's selection
-
-
-def package_path(*parts):
-    """A path inside the example_pcl package ($(rospack find example_pcl)/...), or this checkout."""
-    try:
-        import rospkg
-
-        root = rospkg.RosPack().get_path("example_pcl")
-    except Exception:  # rospkg missing or the package not on ROS_PACKAGE_PATH: use this checkout
-        root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-    return os.path.join(root, *parts)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -70,7 +60,7 @@ class FindCanConfig:
         try:
             tolerances = {name: get_param("~" + name, None) for name in param_names(FinderConfig())}
             finder, _ = finder_from_values(FinderConfig(), {k: v for k, v in tolerances.items() if v is not None})
-            pcd_file = str(get_param("~pcd_file", "") or package_path("data", "test_pcd.pcd"))
+            pcd_file = str(get_param("~pcd_file", "") or default_scene_path())
             origin = get_param("~sensor_origin", None)
             if origin not in (None, ""):
                 origin = tuple(float(v) for v in origin)

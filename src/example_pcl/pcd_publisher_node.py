@@ -22,20 +22,10 @@ from typing import Callable
 from example_pcl.conversions import array_to_cloud
 from example_pcl.errors import PerceptionError
 from example_pcl.pcd import read_pcd
+from example_pcl.resources import default_scene_path
 
 TOPIC = "kinect/depth/points"
 DEFAULT_FRAME_ID = "camera_depth_optical_frame"
-
-
-def default_scene_path() -> str:
-    """The package's bundled scene, ``$(rospack find example_pcl)/data/test_pcd.pcd``."""
-    try:
-        import rospkg
-
-        root = rospkg.RosPack().get_path("example_pcl")
-    except Exception:  # rospkg missing or the package not on ROS_PACKAGE_PATH: use this checkout
-        root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-    return os.path.join(root, "data", "test_pcd.pcd")
 
 
 @dataclasses.dataclass(frozen=True)

@@ -67,13 +67,12 @@ def main(argv=None) -> int:
     from sensor_msgs.msg import PointCloud2
 
     from example_pcl.conversions import xyz_to_cloud
-    from example_pcl.find_can_node import package_path
     from example_pcl.pcd import read_pcd
+    from example_pcl.resources import default_scene_path
 
     rospy.init_node("select_patch", argv=sys.argv if argv is None else argv, anonymous=True)
     try:
-        path = os.path.abspath(os.path.expanduser(str(rospy.get_param("~pcd_file", "")
-                                                      or package_path("data", "test_pcd.pcd"))))
+        path = os.path.abspath(os.path.expanduser(str(rospy.get_param("~pcd_file", "") or default_scene_path())))
         frame_id = str(rospy.get_param("~frame_id", "world")).lstrip("/")
         wait = float(rospy.get_param("~wait", 10.0))
         if not os.path.isfile(path):

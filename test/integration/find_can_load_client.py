@@ -225,7 +225,7 @@ def main(argv):
 
     from example_pcl.can_finder import CanFinder, FinderConfig
     from example_pcl.demo import FindCanClient
-    from example_pcl.find_can_node import package_path
+    from example_pcl.resources import package_path
     from example_pcl.pcd import read_pcd
 
     kind, numbers, out_path = argv[0], [int(a) for a in argv[1:-1]], argv[-1]

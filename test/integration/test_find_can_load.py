@@ -31,7 +31,7 @@ pytestmark = pytest.mark.skipif(subprocess.run(["which", "roscore"], capture_out
 @functools.lru_cache(maxsize=None)
 def bundled_scene():
     """The bundled scene's organized xyz (float32 (H, W, 3)) and its ground truth (the can)."""
-    from example_pcl.find_can_node import package_path
+    from example_pcl.resources import package_path
     from example_pcl.pcd import read_pcd
 
     xyz = np.ascontiguousarray(read_pcd(package_path("data", "test_pcd.pcd")).xyz)

@@ -2,7 +2,8 @@
 import pytest
 
 from example_pcl.errors import PerceptionError
-from example_pcl.find_can_node import FindCanConfig, package_path
+from example_pcl.find_can_node import FindCanConfig
+from example_pcl.resources import package_path
 
 
 def params(**values):

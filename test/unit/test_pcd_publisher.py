@@ -12,7 +12,8 @@ pytest.importorskip("example_pcl._native", reason="example_pcl._native not built
 from example_pcl import pcd  # noqa: E402
 from example_pcl.conversions import cloud_to_array, make_points  # noqa: E402
 from example_pcl.errors import PerceptionError  # noqa: E402
-from example_pcl.pcd_publisher_node import PublisherConfig, default_scene_path, load_cloud_message  # noqa: E402
+from example_pcl.pcd_publisher_node import PublisherConfig, load_cloud_message  # noqa: E402
+from example_pcl.resources import default_scene_path  # noqa: E402
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 
