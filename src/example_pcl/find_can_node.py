@@ -18,7 +18,7 @@ import numpy as np
 
 from example_pcl import messages, transforms
 from example_pcl.can_finder import CanFinder, FinderConfig, Mode, describe_modes
-from example_pcl.errors import PerceptionError, warning_kind
+from example_pcl.errors import OncePerKind, PerceptionError
 from example_pcl.reconfigure import finder_from_values, param_names
 from example_pcl.resources import default_scene_path
 
@@ -118,7 +118,7 @@ class FindCanNode:
         self._rospy = rospy
         self.config = config
         self.lock = threading.Lock()
-        self._warned_kinds = set()
+        self._rejections = OncePerKind()
         self.scene_frame = config.frame_id  # a live cloud's own frame once one is taken
         self.scene_stamp = None  # a live cloud's stamp, which the outputs then carry
         self._newest_cloud = None  # the newest message on ~cloud_topic
@@ -259,13 +259,11 @@ class FindCanNode:
             except PerceptionError as e:
                 self.finder.reject_selection(str(e))
                 self._acknowledge(None, msg.header.stamp)
-                kind = warning_kind(e)
-                if kind in self._warned_kinds:
-                    self._rospy.logdebug("find_can: selection rejected: %s", e)
-                else:
-                    self._warned_kinds.add(kind)
+                if self._rejections.first(e):
                     self._rospy.logwarn("find_can: selection rejected: %s (further selections rejected for this "
                                         "reason are logged at debug level)", e)
+                else:
+                    self._rospy.logdebug("find_can: selection rejected: %s", e)
                 return
             self._acknowledge(pts, msg.header.stamp)
             self._rospy.loginfo("find_can: selection of %d finite point(s) (of %d) stored as the patch for the next "
