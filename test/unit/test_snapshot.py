@@ -1,8 +1,7 @@
-"""pcd_save's pure logic, no master: file names, destination check, the write and its sidecar, drops."""
+"""example_pcl.snapshot, no master: pcd_save's config, file names, destination check, the write and its sidecar,
+the writer threads."""
 import json
 import os
-import subprocess
-import sys
 import threading
 import time
 
@@ -13,12 +12,11 @@ from numpy.testing import assert_array_equal
 pytest.importorskip("sensor_msgs.msg", reason="sensor_msgs not importable: source the devel space")
 pytest.importorskip("example_pcl._native", reason="example_pcl._native not built: source the devel space")
 
-from example_pcl import pcd, pcd_save_node  # noqa: E402
+from example_pcl import pcd  # noqa: E402
 from example_pcl.conversions import array_to_cloud, fields_to_dtype, make_points  # noqa: E402
 from example_pcl.errors import PerceptionError  # noqa: E402
-from example_pcl.pcd_save_node import (DropCounter, FrameQueue, SaveConfig, SnapshotWriter,  # noqa: E402
-                                       check_destination, cloud_metadata, packed_points, save_cloud,
-                                       sidecar_path, snapshot_path, validate_cloud, warning_kind)
+from example_pcl.snapshot import (SaveConfig, SnapshotWriter, check_destination, cloud_metadata,  # noqa: E402
+                                  packed_points, save_cloud, sidecar_path, snapshot_path, validate_cloud)
 
 
 def kinect_cloud(height=12, width=16, seed=0, seq=0):
@@ -195,44 +193,6 @@ def test_validate_cloud_rejects_malformed(breakage, match):
         validate_cloud(msg)
 
 
-def test_warning_kind_groups_errors_of_one_kind():
-    """Errors differing only in numbers or names share a kind (one warning each kind); different kinds do not."""
-    a = PerceptionError("data has 10 bytes, height 1 x row_step 16 needs 16")
-    b = PerceptionError("data has 99 bytes, height 2 x row_step 64 needs 128")
-    c = PerceptionError("big-endian PointCloud2 messages are not supported")
-    assert warning_kind(a) == warning_kind(b) != warning_kind(c)
-
-
-def test_drop_counter_counts_sequence_gaps_per_publisher():
-    """Gaps in header.seq count as drops, per publisher; a sequence going back is a restart, not a drop."""
-    drops = DropCounter()
-    gaps = [drops.observe(s, "/a") for s in (1, 2, 5, 6)]
-    assert gaps == [0, 0, 2, 0]
-    drops.observe(100, "/b")
-    drops.observe(101, "/b")
-    assert drops.seq_gaps == 2
-    assert drops.observe(1, "/a") == 0 and drops.restarts == 1
-    drops.discarded(3)
-    assert drops.dropped == 5 and drops.received == 7
-    assert "sequence gaps 2" in drops.summary() and "queue discards 3" in drops.summary()
-
-
-def test_frame_queue_discards_the_oldest_when_full():
-    """put never blocks: with the queue full the oldest item goes and put reports one discard."""
-    queue = FrameQueue(2)
-    assert [queue.put(i) for i in range(4)] == [0, 0, 1, 1]
-    assert queue.get(0) == 2 and queue.get(0) == 3 and queue.get(0) is None
-    queue.put(9)
-    assert queue.close() == 1 and queue.get() is None  # closed: getters wake up
-
-
-def test_frame_queue_get_waits_for_a_put():
-    """get blocks until another thread puts an item."""
-    queue = FrameQueue(1)
-    threading.Timer(0.05, queue.put, args=("x",)).start()
-    assert queue.get(timeout=5) == "x"
-
-
 def wait_done(writer, timeout=20.0):
     assert writer.done.wait(timeout), "writer did not finish"
 
@@ -325,31 +285,3 @@ def test_continuous_writer_carries_on_after_transient_os_errors(tmp_path):
     writer.stop()
     assert writer.error is None and not writer.done.is_set()
     assert (writer.saved, writer.failed, len(errors)) == (3, 2, 2)
-
-
-FREED_MEMORY_PROBE = """
-import queue, resource, sys, threading
-from example_pcl.pcd_save_node import keep_freed_memory
-assert keep_freed_memory()
-blocks = queue.Queue(maxsize=3)
-def free_them():
-    while blocks.get() is not None:
-        pass
-thread = threading.Thread(target=free_them)
-thread.start()
-for _ in range(5):
-    blocks.put(bytes(bytearray(5 << 20)))
-before = resource.getrusage(resource.RUSAGE_SELF).ru_minflt
-for _ in range(60):
-    blocks.put(bytes(bytearray(5 << 20)))  # made here, freed in the other thread, as rospy's clouds are
-blocks.put(None)
-thread.join()
-print((resource.getrusage(resource.RUSAGE_SELF).ru_minflt - before) / (60 * (5 << 20) / 4096))
-"""
-
-
-def test_keep_freed_memory_reuses_cloud_sized_blocks():
-    """With freed memory kept, 5 MB blocks made in one thread and freed in another fault in under 5% of their pages."""
-    proc = subprocess.run([sys.executable, "-c", FREED_MEMORY_PROBE], capture_output=True, text=True, timeout=60)
-    assert proc.returncode == 0, proc.stderr
-    assert float(proc.stdout) < 0.05
