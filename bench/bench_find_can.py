@@ -31,7 +31,7 @@ from example_pcl import scene as sc  # noqa: E402
 from example_pcl.can_finder import CanFinder, Mode  # noqa: E402
 
 STEPS = [m for m in Mode if m != Mode.FIND_CAN_AUTO]  # the operator walkthrough, modes 0-3
-from example_pcl.demo import CAN_RECT, TABLE_RECT  # noqa: E402
+from example_pcl.find_can_client import CAN_RECT, TABLE_RECT  # noqa: E402
 from example_pcl.pcd import read_pcd  # noqa: E402
 from example_pcl.select_patch import select_points  # noqa: E402
 
@@ -112,7 +112,7 @@ def service_round_trips(repeats):
                                         stderr=subprocess.DEVNULL))
         import rospy
 
-        from example_pcl.demo import FindCanClient
+        from example_pcl.find_can_client import FindCanClient
 
         rospy.init_node("bench_find_can", anonymous=True, disable_signals=True)
         client = FindCanClient(timeout=60)

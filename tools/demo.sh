@@ -37,7 +37,7 @@ for _ in $(seq 100); do
   sleep 0.2
 done
 
-if ! $PYTHON -m example_pcl.demo "$@"; then
+if ! $PYTHON -m example_pcl.demo --out "$OUT/find_can.png" "$@"; then
   echo "demo: failed; the node's log: $LAUNCH_LOG" >&2
   tail -n 20 "$LAUNCH_LOG" >&2
   exit 1

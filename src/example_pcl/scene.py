@@ -385,6 +385,16 @@ def truth_path(pcd_path):
     return pathlib.Path(pcd_path).with_suffix(".json")
 
 
+def can_pose_error(T_sensor_from_can, truth_can):
+    """(centre error in m, axis error in degrees) of a can's pose (4x4: origin at the centre of its
+    base, z along its axis) against a ground-truth can (the truth's ``cans[i]``: base_center, axis;
+    same frame)."""
+    T = np.asarray(T_sensor_from_can, dtype=float)
+    centre_error = float(np.linalg.norm(T[:3, 3] - np.asarray(truth_can["base_center"])))
+    cos = np.clip(T[:3, 2] @ np.asarray(truth_can["axis"]), -1.0, 1.0)
+    return centre_error, float(np.degrees(np.arccos(cos)))
+
+
 # --- command line ---------------------------------------------------------------------------------
 
 

@@ -34,13 +34,13 @@ import rospy
 import rostest
 from shape_msgs.msg import SolidPrimitive
 from visualization_msgs.msg import Marker
-from find_can_helpers import (PKG, call_mode, call_mode_until, find_can_node, pixel_rect, send_static_transforms,
-                              table_rect)
+from find_can_helpers import (PKG, call_mode, call_mode_until, find_can_node, pixel_rect, pose_error,
+                              send_static_transforms, table_rect)
 
 from example_pcl import scene as sc
 from example_pcl.msg import CanArray
 from example_pcl.select_patch import select_points
-from example_pcl.demo import FindCanClient, pose_error, walkthrough
+from example_pcl.find_can_client import FindCanClient, walkthrough
 from example_pcl.messages import matrix_from_pose
 from example_pcl.pcd import write_cloud
 

@@ -14,9 +14,9 @@ import roslib.packages
 import rosnode
 import rospy
 import rostest
-from find_can_helpers import send_static_transforms
+from find_can_helpers import OperatorClient, pose_error, send_static_transforms
 
-from example_pcl.demo import CAN_RECT, TABLE_RECT, FindCanClient, pose_error
+from example_pcl.find_can_client import CAN_RECT, TABLE_RECT
 from example_pcl.transforms import from_translation_quaternion_xyzw
 from example_pcl.pcd import read_pcd
 from example_pcl.select_patch import select_points
@@ -35,7 +35,7 @@ class Errors(unittest.TestCase):
 
         cls.xyz = np.ascontiguousarray(read_pcd(str(DATA / "test_pcd.pcd")).xyz)
         cls.truth = json.loads((DATA / "test_pcd.json").read_text())["cans"][0]
-        cls.client = FindCanClient()
+        cls.client = OperatorClient()
         cls.broadcaster = tf2_ros.StaticTransformBroadcaster()
         send_static_transforms(cls.broadcaster, {("camera_link", "world"): CAMERA_FROM_WORLD})
 

@@ -1,5 +1,6 @@
 """Helpers of the find_can rostest nodes (imported from beside them): a find_can per generated scene,
-process_mode calls without a client, static transforms, pixel patches of a scene's labels.
+process_mode calls without a client, an operator that also clicks, a pose's error against the
+ground truth, static transforms, pixel patches of a scene's labels.
 
 rospy must be initialised by the test node before any of these talk to the graph.
 """
@@ -15,7 +16,8 @@ import roslib.packages
 import rospy
 
 from example_pcl import scene as sc
-from example_pcl.messages import pose
+from example_pcl.find_can_client import FindCanClient
+from example_pcl.messages import matrix_from_pose, pose
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[2] / "tools"))
 from netns_graph import stop_process  # noqa: E402
@@ -38,6 +40,34 @@ def find_can_node(ns, pcd_file, log_path, **params):
         yield proc
     finally:
         stop_process(proc, signal.SIGINT, timeout=15)
+
+
+class OperatorClient(FindCanClient):
+    """A FindCanClient that also clicks, as rviz's Publish Point tool does (clicked_point)."""
+
+    def __init__(self, namespace="", timeout=30.0, frame_id="world"):
+        from geometry_msgs.msg import PointStamped
+
+        super().__init__(namespace, timeout, frame_id)
+        self.clicked_pub = rospy.Publisher(self.namespace + "clicked_point", PointStamped, queue_size=2)
+        self.wait_for_subscriber(self.clicked_pub)
+
+    def click(self, point, frame_id=None):
+        """Publishes a clicked_point (x, y, z, m) in frame_id (default the client's); returns how
+        many scene points the node selected."""
+        from geometry_msgs.msg import PointStamped
+
+        msg = PointStamped()
+        msg.header.frame_id, msg.header.stamp = frame_id or self.frame_id, self.stamp()
+        msg.point.x, msg.point.y, msg.point.z = (float(v) for v in point)
+        self.clicked_pub.publish(msg)
+        return self.acknowledged(msg.header.stamp)
+
+
+def pose_error(pose_msg, truth_can):
+    """(centre error in m, axis error in degrees) of a geometry_msgs/PoseStamped against a
+    ground-truth can (scene.json's ``cans[i]``; same frame)."""
+    return sc.can_pose_error(matrix_from_pose(pose_msg.pose), truth_can)
 
 
 def call_mode(ns, mode, timeout=30.0):

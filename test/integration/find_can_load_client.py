@@ -13,7 +13,7 @@ after each successful mode 2, 3 or 4 is recorded with its answer.
 CALLS_PER_CLIENT calls each of modes drawn from STORM_MODES (seeded), while another thread keeps
 publishing selections alternating between the table and the can patch on selected_points and
 clicked_point (STORM_SELECTIONS); then one last selection on each topic is acknowledged and the
-walkthrough of example_pcl.demo runs once more, clean.
+walkthrough (example_pcl.find_can_client.walkthrough, the demo's) runs once more, clean.
 
 Every call is watched: one unanswered after CALL_TIMEOUT s ends the run (exit status 3) with the
 record written. The record (JSON) is checked by test_find_can_load.py, which replays it on
@@ -28,7 +28,7 @@ import time
 
 import numpy as np
 
-from example_pcl.demo import CAN_RECT, TABLE_RECT
+from example_pcl.find_can_client import CAN_RECT, TABLE_RECT
 
 CALL_TIMEOUT = 30.0  # s: liveness only (a call takes milliseconds); longer means the node hangs
 # Pixels (v, u) of the bundled scene a click selects around: the table left of and below the can,
@@ -179,7 +179,7 @@ def concurrent(recorder, client, selections, xyz, n_clients, calls_per_client):
     """The storm (see the module docstring), then the clean walkthrough, recorded as "after"."""
     import rospy
 
-    from example_pcl.demo import walkthrough
+    from example_pcl.find_can_client import walkthrough
     from example_pcl.srv import ProcessMode
 
     stop = threading.Event()
@@ -223,17 +223,18 @@ def concurrent(recorder, client, selections, xyz, n_clients, calls_per_client):
 def main(argv):
     import rospy
 
+    from find_can_helpers import OperatorClient
+
     from example_pcl.can_finder import CanFinder, FinderConfig
-    from example_pcl.demo import FindCanClient
-    from example_pcl.resources import package_path
     from example_pcl.pcd import read_pcd
+    from example_pcl.resources import package_path
 
     kind, numbers, out_path = argv[0], [int(a) for a in argv[1:-1]], argv[-1]
     rospy.init_node("find_can_load_client", anonymous=True)
     xyz = np.ascontiguousarray(read_pcd(package_path("data", "test_pcd.pcd")).xyz)
     finder = CanFinder(xyz, FinderConfig())
     selections = {name: selection_points(name, xyz, finder) for name in SELECTIONS}
-    client = FindCanClient(timeout=CALL_TIMEOUT)
+    client = OperatorClient(timeout=CALL_TIMEOUT)
     recorder = Recorder(out_path)
     if kind == "sequential":
         sequential(recorder, client, selections, *numbers)

@@ -18,10 +18,10 @@ import numpy as np
 import roslib.packages
 import rospy
 import rostest
-from find_can_helpers import PKG, find_can_node, pixel_rect, send_static_transforms, table_rect
+from find_can_helpers import PKG, find_can_node, pixel_rect, pose_error, send_static_transforms, table_rect
 
 from example_pcl import scene as sc
-from example_pcl.demo import FindCanClient, pose_error, walkthrough
+from example_pcl.find_can_client import FindCanClient, walkthrough
 from example_pcl.messages import matrix_from_pose
 from example_pcl.transforms import from_translation_quaternion_xyzw
 from example_pcl.pcd import read_pcd, write_cloud

@@ -24,11 +24,12 @@ import pytest
 import yaml
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
+from find_can_helpers import pose_error  # noqa: E402
 from graph_helpers import RosGraph, wait_for  # noqa: E402
 from rviz_driver import OrbitView, RvizWindow, Xvfb, missing_tools, near_colour, pixel_mask, saturated  # noqa: E402
 
 from example_pcl.conversions import cloud_to_xyz  # noqa: E402
-from example_pcl.demo import CAN_RECT, TABLE_RECT, pose_error  # noqa: E402
+from example_pcl.find_can_client import CAN_RECT, TABLE_RECT  # noqa: E402
 from example_pcl.pcd import read_pcd  # noqa: E402
 
 PROJECT = pathlib.Path(__file__).resolve().parents[2]

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 
+from example_pcl import geometry
 from example_pcl import scene as sc
 from example_pcl.errors import PerceptionError
 
@@ -352,3 +353,14 @@ def test_script_is_executable_and_calls_main():
     assert os.access(script, os.X_OK)
     text = script.read_text()
     assert text.startswith("#!/usr/bin/python3\n") and "example_pcl.scene.main()" in text
+
+
+def test_can_pose_error_against_truth():
+    """can_pose_error gives the centre distance (m) and the axis angle (deg) from a ground-truth can."""
+    truth = {"base_center": [0.0, 0.0, 1.0], "axis": [0.0, -0.6216099682706644, -0.7833269096274834]}
+    T = geometry.plane_frame(truth["axis"], np.array(truth["base_center"]) + (0.003, 0.0, 0.004))
+    centre, axis = sc.can_pose_error(T, truth)
+    assert centre == pytest.approx(0.005, abs=1e-9) and axis == pytest.approx(0.0, abs=1e-5)
+    tilted = geometry.plane_frame((0.0, -0.7, -0.7), truth["base_center"])
+    expected = np.degrees(np.arccos(np.dot(np.array([0.0, -0.7, -0.7]) / np.sqrt(0.98), truth["axis"])))
+    assert sc.can_pose_error(tilted, truth)[1] == pytest.approx(expected, abs=1e-6)
