@@ -1,4 +1,4 @@
-"""The one exception class of example_pcl, and how nodes log its messages once per kind."""
+"""The one exception class of example_pcl, and how nodes group its messages for logging."""
 import re
 
 
@@ -13,23 +13,31 @@ class PerceptionError(ValueError):
 
 
 def warning_kind(error: Exception) -> str:
-    """A key grouping errors of one kind: the message with its numbers and quoted names blanked."""
+    """A key grouping errors of one kind: the message with its numbers and quoted names blanked.
+
+    Nodes log the first error of each kind as a warning and count the rest, so a publisher
+    sending the same bad message at 30 Hz cannot flood the log.
+    """
     return re.sub(r"'[^']*'", "'…'", re.sub(r"\d+", "N", str(error)))
 
 
 class OncePerKind:
-    """Which kinds of error (:func:`warning_kind`) were seen: nodes log the first of each kind as a
-    warning and the rest quietly (counted, or at debug level), so a publisher sending the same bad
-    message at 30 Hz cannot flood the log. Unlocked: two threads meeting a new kind at once may
-    both be told first (two warnings, never none)."""
+    """Logs the first message of each kind (warning_kind) through `first`, later ones through
+    `again` (e.g. rospy.logwarn and rospy.logdebug; None: not at all, only counted), and counts
+    them all by kind."""
 
-    def __init__(self):
-        self._seen = set()
+    def __init__(self, first, again=None):
+        self._first, self._again = first, again
+        self.counts = {}
 
-    def first(self, error: Exception) -> bool:
-        """True the first time an error of this kind is seen, False after."""
-        kind = warning_kind(error)
-        if kind in self._seen:
-            return False
-        self._seen.add(kind)
-        return True
+    def __call__(self, what, error):
+        """Logs "what: error"; returns True when it was the first of its kind."""
+        kind = warning_kind(f"{what}: {error}")
+        self.counts[kind] = self.counts.get(kind, 0) + 1
+        if self.counts[kind] == 1:
+            later = "logged at debug level" if self._again is not None else "counted, not logged"
+            self._first("%s: %s (further ones of this kind are %s)", what, error, later)
+            return True
+        if self._again is not None:
+            self._again("%s: %s", what, error)
+        return False

@@ -118,7 +118,7 @@ class FindCanNode:
         self._rospy = rospy
         self.config = config
         self.lock = threading.Lock()
-        self._rejections = OncePerKind()
+        self._rejections = OncePerKind(rospy.logwarn, rospy.logdebug)
         self.scene_frame = config.frame_id  # a live cloud's own frame once one is taken
         self.scene_stamp = None  # a live cloud's stamp, which the outputs then carry
         self._newest_cloud = None  # the newest message on ~cloud_topic
@@ -259,11 +259,7 @@ class FindCanNode:
             except PerceptionError as e:
                 self.finder.reject_selection(str(e))
                 self._acknowledge(None, msg.header.stamp)
-                if self._rejections.first(e):
-                    self._rospy.logwarn("find_can: selection rejected: %s (further selections rejected for this "
-                                        "reason are logged at debug level)", e)
-                else:
-                    self._rospy.logdebug("find_can: selection rejected: %s", e)
+                self._rejections("find_can: selection rejected", e)
                 return
             self._acknowledge(pts, msg.header.stamp)
             self._rospy.loginfo("find_can: selection of %d finite point(s) (of %d) stored as the patch for the next "

@@ -63,7 +63,7 @@ class PcdSaveNode:
         self.stop_requested = threading.Event()
         self.last_cloud_at = time.monotonic()
         self.malformed = 0
-        self._malformed_kinds = OncePerKind()
+        self._malformed_kinds = OncePerKind(rospy.logwarn)  # the rest dropped silently, counted
         self.writer = SnapshotWriter(config, self.topic, on_saved=self._on_saved, on_reject=self._on_malformed,
                                      on_write_error=self._on_write_error)
         self.writer.start()
@@ -85,9 +85,7 @@ class PcdSaveNode:
 
     def _on_malformed(self, error: Exception) -> None:
         self.malformed += 1
-        if self._malformed_kinds.first(error):
-            self._rospy.logwarn("dropping a malformed cloud on %s: %s (further clouds of this kind are dropped "
-                                "silently and counted)", self.topic, error)
+        self._malformed_kinds(f"dropping a malformed cloud on {self.topic}", error)
 
     def _on_write_error(self, error: Exception) -> None:
         self._rospy.logerr_throttle(5.0, f"writing a snapshot failed ({self.writer.failed} so far), carrying on: "

@@ -10,10 +10,24 @@ def test_warning_kind_groups_errors_of_one_kind():
     assert warning_kind(a) == warning_kind(b) != warning_kind(c)
 
 
-def test_once_per_kind_says_first_once_for_each_kind():
-    """The first error of each kind is first, later ones of that kind are not, whatever their numbers and names."""
-    seen = OncePerKind()
+def test_once_per_kind_logs_the_first_of_each_kind_and_the_rest_quietly():
+    """The first error of each kind goes to `first`, later ones of that kind (whatever their numbers
+    and names) to `again`; all are counted by kind."""
+    first, again = [], []
+    once = OncePerKind(lambda *a: first.append(a[0] % a[1:]), lambda *a: again.append(a[0] % a[1:]))
     errors = [PerceptionError("frame 'a' has 3 points"), PerceptionError("frame 'b' has 7 points"),
               PerceptionError("no table"), PerceptionError("frame 'c' has 1 points"), PerceptionError("no table")]
-    assert [seen.first(e) for e in errors] == [True, False, True, False, False]
-    assert OncePerKind().first(errors[1])  # each node (each instance) keeps its own
+    assert [once("dropped", e) for e in errors] == [True, False, True, False, False]
+    assert first == ["dropped: frame 'a' has 3 points (further ones of this kind are logged at debug level)",
+                     "dropped: no table (further ones of this kind are logged at debug level)"]
+    assert again == ["dropped: frame 'b' has 7 points", "dropped: frame 'c' has 1 points", "dropped: no table"]
+    assert sorted(once.counts.values()) == [2, 3]
+
+
+def test_once_per_kind_without_again_only_counts():
+    """With no `again`, later errors of a kind are counted, not logged, and the first says so."""
+    first = []
+    once = OncePerKind(lambda *a: first.append(a[0] % a[1:]))
+    assert [once("x", PerceptionError("bad 1")), once("x", PerceptionError("bad 2"))] == [True, False]
+    assert first == ["x: bad 1 (further ones of this kind are counted, not logged)"]
+    assert list(once.counts.values()) == [2]
