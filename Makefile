@@ -37,14 +37,14 @@ test: build
 unit: build
 	@$(IN_DEVEL) $(PYTHON) -m pytest test/unit $(PYTEST_ARGS)
 
-# Open3D (not in Debian) goes into a benchmark-only venv; the figures are written into README.md.
+# Open3D (not in Debian) goes into a benchmark-only venv; the figures are written into docs/benchmarks.md.
 # The C++ benchmark programs (bench/*.cpp) are built only here (BUILD_BENCH=ON reaches `build`).
 bench: BUILD_BENCH = ON
 bench: build
 	@bench_python=$$(tools/bench_env.sh build/bench-venv) && \
 	  PCD_IO_PCL=$(WS)/devel/lib/example_pcl/bench/pcd_io_pcl $(IN_DEVEL) $$bench_python bench/run_all.py
 
-# The README's rviz pictures (docs/rviz/*.jpg): the operator test in a real rviz under Xvfb saves each step.
+# The rviz pictures (docs/rviz/*.jpg): the operator test in a real rviz under Xvfb saves each step.
 screenshots: build
 	@EXAMPLE_PCL_SCREENSHOTS=$(CURDIR)/docs/rviz $(IN_DEVEL) $(PYTHON) -m pytest test/integration/test_rviz_operator.py $(PYTEST_ARGS)
 

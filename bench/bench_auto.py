@@ -23,7 +23,7 @@ Centre error: horizontal distance, in the true table plane, from the true base c
 found axis meets the true table plane. A found can matches the nearest true can within 2 cm; an
 unmatched one is a false can, an unmatched true can is missed.
 Clustering: also times PCL's EuclideanClusterExtraction against organized connected components
-on the same points. Run `bench/bench_auto.py [--scenes N] [--pcl-scenes M] [--no-readme]`.
+on the same points. Run `bench/bench_auto.py [--scenes N] [--pcl-scenes M] [--print-only]`.
 """
 import argparse
 import json
@@ -38,7 +38,7 @@ import time
 import numpy as np
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
-from common import PROJECT, machine_line, median_time, table, write_readme_section  # noqa: E402
+from common import PROJECT, machine_line, median_time, table, write_figures  # noqa: E402
 
 from example_pcl import _native, auto_finder, scene as sc  # noqa: E402
 from example_pcl import transforms  # noqa: E402
@@ -172,7 +172,7 @@ def main(argv=None):
     parser.add_argument("--pcl-scenes", type=int, default=12,
                         help="of which PCL's pipeline runs on the first M (default %(default)s)")
     parser.add_argument("--seed", type=int, default=2024)
-    parser.add_argument("--no-readme", action="store_true", help="print only; leave README.md alone")
+    parser.add_argument("--print-only", action="store_true", help="print only; leave docs/benchmarks.md alone")
     args = parser.parse_args(argv)
 
     rng = np.random.default_rng(args.seed)
@@ -265,8 +265,8 @@ def main(argv=None):
     print(text)
     if failures:
         print("\nscenes with misses or false cans:\n" + "\n".join(failures), file=sys.stderr)
-    if not args.no_readme:
-        write_readme_section("auto", text)
+    if not args.print_only:
+        write_figures("auto", text)
     return 0
 
 

@@ -2,8 +2,8 @@
 """The native core side by side with sensor_msgs, NumPy, memcpy, PCL's C++ and (when installed) Open3D.
 
 On a 640x480 organized XYZRGB cloud with ~30% NaN points, laid out as PCL's PointXYZRGB
-(32 bytes a point) in a sensor_msgs/PointCloud2. Run with `make bench` (writes the README's
-figures) or `bench/bench_core.py --no-readme`.
+(32 bytes a point) in a sensor_msgs/PointCloud2. Run with `make bench` (writes the figures in
+docs/benchmarks.md) or `bench/bench_core.py --print-only`.
 """
 import argparse
 import json
@@ -18,7 +18,7 @@ import tempfile
 import numpy as np
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
-from common import PROJECT, machine_line, median_time, ms, table, write_readme_section  # noqa: E402
+from common import PROJECT, machine_line, median_time, ms, table, write_figures  # noqa: E402
 
 from example_pcl import _native, conversions, pcd  # noqa: E402
 
@@ -193,7 +193,7 @@ def pcd_row(med, op, variant, fmt):
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--no-readme", action="store_true", help="print only; leave README.md alone")
+    parser.add_argument("--print-only", action="store_true", help="print only; leave docs/benchmarks.md alone")
     parser.add_argument("--pcl-program", default=os.environ.get("PCD_IO_PCL"),
                         help="the bench/pcd_io_pcl.cpp program (make bench passes it)")
     args = parser.parse_args(argv)
@@ -221,8 +221,8 @@ def main(argv=None):
                             rows))
     text = "\n\n".join(sections)
     print(text)
-    if not args.no_readme:
-        write_readme_section("core", text)
+    if not args.print_only:
+        write_figures("core", text)
 
 
 if __name__ == "__main__":

@@ -5,8 +5,8 @@ Compute: CanFinder (what find_can's service callback runs) called directly on th
 two generated ones, per mode and in total (median over repeats; the budget is one Kinect frame
 period, 33 ms). Round-trip: a find_can node on the bundled scene (its own roscore on a free port),
 each process_mode call timed from the client's rospy.ServiceProxy: compute, publishing the results
-and the ROS transport. Run `bench/bench_find_can.py [--repeats N] [--no-readme]`; without
---no-readme the table goes into README.md between <!-- bench:find_can --> markers.
+and the ROS transport. Run `bench/bench_find_can.py [--repeats N] [--print-only]`; without
+--print-only the table goes into docs/benchmarks.md between <!-- bench:find_can --> markers.
 """
 import argparse
 import os
@@ -22,7 +22,7 @@ import time
 import numpy as np
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
-from common import PROJECT, machine_line, table, write_readme_section  # noqa: E402
+from common import PROJECT, machine_line, table, write_figures  # noqa: E402
 
 sys.path.insert(0, str(PROJECT / "tools"))
 from netns_graph import stop_process  # noqa: E402
@@ -142,7 +142,7 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--repeats", type=int, default=15, help="walkthroughs timed per scene (default %(default)s)")
     parser.add_argument("--no-service", action="store_true", help="skip the node's service round-trip")
-    parser.add_argument("--no-readme", action="store_true", help="print only; leave README.md alone")
+    parser.add_argument("--print-only", action="store_true", help="print only; leave docs/benchmarks.md alone")
     args = parser.parse_args(argv)
 
     def ms(seconds):
@@ -170,8 +170,8 @@ def main(argv=None):
         f"Command: `bench/bench_find_can.py`. Machine: {machine_line()}",
     ])
     print(text)
-    if not args.no_readme:
-        write_readme_section("find_can", text)
+    if not args.print_only:
+        write_figures("find_can", text)
     return 0 if slowest <= BUDGET else 1
 
 

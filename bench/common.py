@@ -1,4 +1,4 @@
-"""Helpers shared by the benchmarks: timing, the machine line, tables, writing figures into the README."""
+"""Helpers shared by the benchmarks: timing, the machine line, tables, writing figures into docs/benchmarks.md."""
 import os
 import pathlib
 import platform
@@ -8,7 +8,7 @@ import subprocess
 import time
 
 PROJECT = pathlib.Path(__file__).resolve().parent.parent
-README = PROJECT / "README.md"
+BENCHMARKS = PROJECT / "docs" / "benchmarks.md"
 
 
 def median_time(f, repeats=7, warmup=1):
@@ -51,13 +51,13 @@ def table(header, rows):
     return "\n".join(lines)
 
 
-def write_readme_section(name, text):
-    """Replaces the README's text between <!-- bench:NAME --> and <!-- /bench:NAME --> with text."""
+def write_figures(name, text):
+    """Replaces the text between <!-- bench:NAME --> and <!-- /bench:NAME --> in docs/benchmarks.md with text."""
     start, end = f"<!-- bench:{name} -->", f"<!-- /bench:{name} -->"
-    readme = README.read_text()
+    page = BENCHMARKS.read_text()
     pattern = re.compile(re.escape(start) + ".*?" + re.escape(end), re.S)
-    if not pattern.search(readme):
-        print(f"README.md has no {start} ... {end} markers; figures not written there")
+    if not pattern.search(page):
+        print(f"docs/benchmarks.md has no {start} ... {end} markers; figures not written there")
         return
-    README.write_text(pattern.sub(lambda _: f"{start}\n{text}\n{end}", readme))
-    print(f"figures written to README.md ({name})")
+    BENCHMARKS.write_text(pattern.sub(lambda _: f"{start}\n{text}\n{end}", page))
+    print(f"figures written to docs/benchmarks.md ({name})")

@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""Every benchmark in one run; each one's table goes into README.md (`make bench`)."""
+"""Every benchmark in one run; each one's table goes into docs/benchmarks.md (`make bench`)."""
 import os
 import pathlib
 import subprocess
@@ -7,7 +7,7 @@ import sys
 
 HERE = pathlib.Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
-from common import write_readme_section  # noqa: E402
+from common import write_figures  # noqa: E402
 
 
 def run(script, *args):
@@ -22,10 +22,10 @@ def run(script, *args):
 def main():
     pcl_program = os.environ.get("PCD_IO_PCL", "")
     run("bench_core.py", *(["--pcl-program", pcl_program] if pcl_program else []))
-    write_readme_section("pcd_save", run("pcd_save_rate.py"))
+    write_figures("pcd_save", run("pcd_save_rate.py"))
     if (HERE / "bench_find_can.py").exists():
         run("bench_find_can.py")
-    run("bench_auto.py")  # writes its own README section (auto)
+    run("bench_auto.py")  # writes its own section of docs/benchmarks.md (auto)
 
 
 if __name__ == "__main__":

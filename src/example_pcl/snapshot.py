@@ -5,7 +5,7 @@ width x height, is_dense and NaN points, to a PCD file, and what PCD has no plac
 stamp, seq, topic, publisher, the message's layout, the wall time) to ``<file>.json``. Both are
 written atomically (temporary name, fsync, rename): a kill, a crash or a full disk never leaves a
 partial file under a final name. :class:`SnapshotWriter` saves a stream of them with a pool of
-threads fed through a :class:`~example_pcl.frame_queue.FrameQueue`, numbering the files
+threads fed through a :class:`~example_pcl.frame_stream.FrameQueue`, numbering the files
 (:func:`snapshot_path`). :class:`SaveConfig` is pcd_save's configuration (its ``~params``).
 """
 from __future__ import annotations
@@ -24,7 +24,7 @@ from numpy.lib import recfunctions
 
 from example_pcl import conversions
 from example_pcl.errors import PerceptionError
-from example_pcl.frame_queue import DropCounter, FrameQueue
+from example_pcl.frame_stream import DropCounter, FrameQueue
 from example_pcl.pcd import FORMATS, atomic_path, write_pcd
 
 

@@ -5,11 +5,11 @@ a private X display, serves the module. The tests check what is drawn in the 3-D
 where the bundled scene's points project (rviz's Orbit camera, rviz_driver.OrbitView), then work
 the seed's walkthrough with the mouse: the Publish Selection tool (this package's rviz plugin)
 dragged over the table and over the can, and once the stock Publish Point tool; the service calls
-are `rosservice call` as the README documents, and the can pose that comes out is compared with
-the scene's ground truth.
+are `rosservice call` as docs/walkthrough.md documents, and the can pose that comes out is compared
+with the scene's ground truth.
 
 With EXAMPLE_PCL_SCREENSHOTS=DIR (``make screenshots``) each step's view is saved to DIR as PNG:
-the README's pictures.
+the pictures of docs/walkthrough.md.
 """
 import colorsys
 import json
@@ -92,7 +92,7 @@ class Operator:
         return image
 
     def save(self, image, name):
-        """With EXAMPLE_PCL_SCREENSHOTS set, the view as DIR/name.jpg at half size (the README's pictures)."""
+        """With EXAMPLE_PCL_SCREENSHOTS set, the view as DIR/name.jpg at half size (docs/rviz/)."""
         if self.shots is not None:
             from PIL import Image
 
@@ -175,7 +175,7 @@ class Operator:
         assert wait_for(lambda: self.selections() > before, 30), f"find_can got no clicked point:\n{self.log()}"
 
     def process_mode(self, mode):
-        """`rosservice call /process_mode N`, as the README says; the answer as a dict."""
+        """`rosservice call /process_mode N`, as docs/walkthrough.md says; the answer as a dict."""
         out = subprocess.run(["rosservice", "call", "/process_mode", str(mode)], env=self.graph.env,
                              capture_output=True, text=True, timeout=60)
         assert out.returncode == 0, out.stdout + out.stderr

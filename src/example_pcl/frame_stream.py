@@ -1,4 +1,5 @@
-"""A sensor stream's bounded queue and its lost-frame count; ROS-free.
+"""A live stream's plumbing, without ROS: a bounded queue between the receiving thread and the
+workers, and the count of frames lost on the way.
 
 :class:`FrameQueue` never blocks the receiving thread: when full, the oldest frame is discarded.
 :class:`DropCounter` counts the frames lost on the way (sequence gaps) and those discarded here.

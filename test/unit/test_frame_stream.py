@@ -1,7 +1,7 @@
-"""example_pcl.frame_queue: the drop-oldest queue and the lost-frame count."""
+"""example_pcl.frame_stream: the drop-oldest queue and the lost-frame count."""
 import threading
 
-from example_pcl.frame_queue import DropCounter, FrameQueue
+from example_pcl.frame_stream import DropCounter, FrameQueue
 
 
 def test_drop_counter_counts_sequence_gaps_per_publisher():
