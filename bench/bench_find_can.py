@@ -12,7 +12,6 @@ import argparse
 import os
 import pathlib
 import signal
-import socket
 import statistics
 import subprocess
 import sys
@@ -22,7 +21,7 @@ import time
 import numpy as np
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
-from common import PROJECT, machine_line, table, write_figures  # noqa: E402
+from common import PROJECT, free_port, machine_line, table, write_figures  # noqa: E402
 
 sys.path.insert(0, str(PROJECT / "tools"))
 from netns_graph import stop_process  # noqa: E402
@@ -78,12 +77,6 @@ def time_modes(xyz, table_rect, can_rect, repeats):
             per_mode[mode].append(t)
         totals.append(sum(times.values()))
     return {m: statistics.median(t) for m, t in per_mode.items()}, statistics.median(totals), message
-
-
-def free_port():
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def service_round_trips(repeats):

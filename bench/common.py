@@ -3,12 +3,20 @@ import os
 import pathlib
 import platform
 import re
+import socket
 import statistics
 import subprocess
 import time
 
 PROJECT = pathlib.Path(__file__).resolve().parent.parent
 BENCHMARKS = PROJECT / "docs" / "benchmarks.md"
+
+
+def free_port():
+    """A TCP port free on this machine now (for a private roscore)."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
 
 
 def median_time(f, repeats=7, warmup=1):

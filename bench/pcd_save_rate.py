@@ -17,7 +17,6 @@ import platform
 import re
 import shutil
 import signal
-import socket
 import subprocess
 import sys
 import tempfile
@@ -27,15 +26,11 @@ import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
+sys.path.insert(0, HERE)
+from common import free_port  # noqa: E402
 KINECT_FRAME = os.path.join(ROOT, "..", "shared", "data", "frame_20121214T142256.332395.pcd")
 SUMMARY = re.compile(r"pcd_save done: saved (\d+) of (\d+) clouds received .*?\(([\d.]+) Hz\), dropped (\d+) "
                      r"\(sequence gaps (\d+), queue discards (\d+)\)")
-
-
-def free_port():
-    with socket.socket() as s:
-        s.bind(("localhost", 0))
-        return s.getsockname()[1]
 
 
 def cpu_seconds(pid):

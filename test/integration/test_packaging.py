@@ -4,23 +4,17 @@ import os
 import pathlib
 import re
 import shutil
-import socket
 import subprocess
 import textwrap
 
 import pytest
+from graph_helpers import free_port
 
 PROJECT = pathlib.Path(__file__).resolve().parents[2]
 ROS_PYTHON = "/usr/bin/python3"
 
 pytestmark = pytest.mark.skipif(shutil.which("catkin_make") is None or shutil.which("rosrun") is None,
                                 reason="catkin_make/rosrun missing: run `make test`, which installs them")
-
-
-def free_port():
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 @pytest.fixture
