@@ -99,7 +99,7 @@ def can_markers(cans, frame_id, stamp=None):
 
 def cylinder_primitive(radius, height):
     """shape_msgs/SolidPrimitive CYLINDER of radius and height (m), the form MoveIt's planning scene
-    takes. A primitive cylinder is centred on its pose: see can_shape_pose."""
+    takes. A primitive cylinder is centred on its pose: half a height up the axis from a can's base."""
     shape = SolidPrimitive(type=SolidPrimitive.CYLINDER, dimensions=[0.0, 0.0])
     shape.dimensions[SolidPrimitive.CYLINDER_HEIGHT] = float(height)
     shape.dimensions[SolidPrimitive.CYLINDER_RADIUS] = float(radius)
