@@ -186,6 +186,9 @@ class FindCanNode:
     def on_cloud(self, msg):
         """~cloud_topic: keeps the newest cloud for the next mode 0 or 4 (checked when taken)."""
         self._newest_cloud = msg  # one reference swap: no lock needed, and a step never waits for it
+        if self.scene_stamp is None:
+            # Until mode 0 takes a cloud, the operator selects on the stream itself: in its frame.
+            self.scene_frame = msg.header.frame_id.lstrip("/") or self.config.frame_id
 
     def _take_newest_cloud(self):
         """With ~cloud_topic, makes the newest cloud the scene (the selection kept) and republishes
@@ -370,7 +373,7 @@ class FindCanNode:
         and can_pose (can_pose_target) advertised anew, so no latched pose of it stays."""
         from geometry_msgs.msg import PoseStamped
 
-        self.marker_pub.publish(messages.delete_marker(frame))
+        self.marker_pub.publish(messages.delete_marker(frame, stamp=stamp))
         self._publish_all_cans((), frame, stamp)
         self.pose_pub.unregister()
         self.pose_pub = self._pub(POSE_TOPIC, PoseStamped)

@@ -71,14 +71,14 @@ def can_marker(T_sensor_from_can, radius, height, frame_id, stamp=None, ns=CAN_N
     return marker
 
 
-def delete_marker(frame_id, ns=CAN_NS, marker_id=0):
+def delete_marker(frame_id, ns=CAN_NS, marker_id=0, stamp=None):
     """visualization_msgs/Marker deleting one marker (by default can_marker's: a new plane forgets the can)."""
-    return Marker(header=header(frame_id), ns=ns, id=marker_id, action=Marker.DELETE)
+    return Marker(header=header(frame_id, stamp), ns=ns, id=marker_id, action=Marker.DELETE)
 
 
-def delete_all_marker(frame_id):
+def delete_all_marker(frame_id, stamp=None):
     """visualization_msgs/Marker deleting every marker of its topic (a DELETEALL)."""
-    return Marker(header=header(frame_id), action=Marker.DELETEALL)
+    return Marker(header=header(frame_id, stamp), action=Marker.DELETEALL)
 
 
 def can_poses(cans, frame_id, stamp=None):
@@ -91,7 +91,7 @@ def can_markers(cans, frame_id, stamp=None):
     """visualization_msgs/MarkerArray of the cans (example_pcl.can.Can): a DELETEALL, so no marker
     of an earlier search stays, then one CYLINDER of each can's own radius and height (namespace
     CANS_NS, ids 0, 1, ... in the order given)."""
-    markers = [delete_all_marker(frame_id)]
+    markers = [delete_all_marker(frame_id, stamp)]
     markers += [can_marker(c.T_sensor_from_can, c.radius, c.height, frame_id, stamp, ns=CANS_NS, marker_id=i)
                 for i, c in enumerate(cans)]
     return MarkerArray(markers=markers)

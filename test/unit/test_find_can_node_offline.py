@@ -154,3 +154,20 @@ def test_live_cloud_error_keeps_the_previous_cloud(logs, scenes):
     for pub in (node.poses_pub, node.cans_pub, node.pose_pub, node.model_pub):
         assert (pub.sent[-1].header.frame_id, pub.sent[-1].header.stamp) == ("live_camera", rospy.Time(6)), pub.name
     np.testing.assert_array_equal(node.finder.scene.reshape(-1, 3)[:5], scenes["two"].xyz.reshape(-1, 3)[:5])
+
+
+def test_live_selection_before_the_first_cloud_is_taken_is_in_the_stream_frame(logs, scenes):
+    """With ~cloud_topic, a patch selected on the stream before mode 0 took a cloud is in the stream's
+    frame (not ~frame_id): accepted without tf2, and mode 0 then finds the table on it."""
+    from example_pcl.find_can_client import TABLE_RECT
+
+    node = FindCanNode(FindCanConfig(pcd_file="unused.pcd", cloud_topic="cloud", frame_id="world"))
+    scene = scenes["one"]
+    node.on_cloud(xyz_to_cloud(scene.xyz, scene.rgb, frame_id="live_camera", stamp=rospy.Time(5)))
+    u0, v0, u1, v1 = TABLE_RECT
+    patch = scene.xyz[v0:v1, u0:u1].reshape(-1, 3)
+    node.on_selected_points(xyz_to_cloud(patch[np.isfinite(patch).all(axis=1)], frame_id="live_camera"))
+    assert not any(level in ("logwarn", "logerr") for level, _ in logs), logs
+    answer = call(node, 0)
+    assert answer.success, answer.message
+    assert node.patch_pub.sent[-1].header.frame_id == "live_camera"

@@ -63,6 +63,16 @@ def test_delete_markers():
     assert clear.action == Marker.DELETEALL and clear.header.frame_id == "cam"
 
 
+def test_delete_markers_carry_the_stamp_given():
+    """A DELETE or DELETEALL sent for a cloud carries that cloud's stamp (rviz orders by it)."""
+    import rospy
+
+    stamp = rospy.Time(12, 34)
+    assert messages.delete_marker("world", stamp=stamp).header.stamp == stamp
+    assert messages.delete_all_marker("cam", stamp).header.stamp == stamp
+    assert messages.can_markers([], "cam", stamp).markers[0].header.stamp == stamp
+
+
 @pytest.mark.parametrize("n", [0, 1, 3])
 def test_can_poses_and_markers_one_per_can(n):
     """can_poses holds each can's pose in order; can_markers a DELETEALL then one CYLINDER per can
