@@ -173,8 +173,9 @@ def track_markers(tracks, ended_ids, frame_id, stamp=None):
         markers += [cylinder, label_marker(f"can {t.id}, r {1e3 * t.radius:.0f} mm", top, frame_id, stamp,
                                            marker_id=t.id)]
     for marker_id in ended_ids:
-        markers += [delete_marker(frame_id, ns=CANS_NS, marker_id=marker_id),
-                    delete_marker(frame_id, ns=LABELS_NS, marker_id=marker_id)]
+        for ns in (CANS_NS, LABELS_NS):
+            markers.append(delete_marker(frame_id, ns=ns, marker_id=marker_id))
+            markers[-1].header = header(frame_id, stamp)
     return MarkerArray(markers=markers)
 
 
