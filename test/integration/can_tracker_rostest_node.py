@@ -115,7 +115,7 @@ class CanTrackerTests(unittest.TestCase):
 
     def stream(self, recorder, t0):
         """Sends every frame at 30 Hz, stamped t0 + i / 30, its camera pose on /tf first."""
-        wait_for(lambda: self.cloud_pub.get_num_connections() > 0, 30, "can_tracker to subscribe (lazy)")
+        self.wait_for_trackers()
         rate = rospy.Rate(RATE)
         for f in self.frames:
             stamp = rospy.Time.from_sec(t0 + f.index / RATE)
@@ -123,6 +123,12 @@ class CanTrackerTests(unittest.TestCase):
             self.cloud_pub.publish(conversions.xyz_to_cloud(f.xyz, frame_id="camera", stamp=stamp))
             rate.sleep()
         self.settle(recorder, t0)
+
+    def wait_for_trackers(self):
+        """Until the tracker subscribes to the clouds (lazy: once we listen) and both trackers' tf
+        listeners to our /tf: a transform sent before would be lost, and its frame skipped."""
+        wait_for(lambda: self.cloud_pub.get_num_connections() > 0, 30, "can_tracker to subscribe (lazy)")
+        wait_for(lambda: self.tf_pub.pub_tf.get_num_connections() >= 2, 30, "the trackers' tf listeners")
 
     def settle(self, recorder, t0):
         last = rospy.Time.from_sec(t0 + (len(self.frames) - 1) / RATE)
@@ -149,7 +155,8 @@ class CanTrackerTests(unittest.TestCase):
                 matched[truth_id] = (track_id, T[:3, 3])
                 ids.setdefault(truth_id, set()).add(track_id)
             for track_id in set(outputs) - {m[0] for m in matched.values()}:  # only the removed can may coast
-                self.assertTrue(i > LAST_SEEN and track_id in ids.get(REMOVED, ()), f"frame {i}: a stray track {track_id}")
+                self.assertTrue(i > LAST_SEEN and track_id in ids.get(REMOVED, ()),
+                                f"frame {i}: a stray track {track_id}")
             per_frame[i] = matched
         self.assertTrue(per_frame and min(per_frame) < 6 and max(per_frame) > LAST_SEEN + MAX_MISSED,
                         f"frames processed: {sorted(per_frame)}")
@@ -210,7 +217,7 @@ class CanTrackerTests(unittest.TestCase):
         """Empty, all-NaN and z-less clouds, a frame_id tf2 does not know, time going backwards:
         each logged once, the node keeps tracking (a reset on the jump back, the old markers deleted)."""
         recorder = Recorder("/")
-        wait_for(lambda: self.cloud_pub.get_num_connections() > 0, 30, "can_tracker to subscribe (lazy)")
+        self.wait_for_trackers()
         f = self.frames[-1]
         now = rospy.get_time() + 1.0
         bad = [conversions.xyz_to_cloud(np.zeros((0, 3), np.float32), frame_id="camera"),

@@ -263,7 +263,8 @@ def test_config_defaults_and_params():
                                                      local_max_fit_points=200))
     assert (config.tracker.max_missed, config.local.search_period, config.target_frame) == (3, 12, "base_link")
     assert (config.lazy, config.tf_timeout, config.local.auto.min_radius) == (False, 0.5, 0.02)
-    assert (config.local.max_fit_points, config.local.auto.max_fit_points) == (200, LocalFitConfig().auto.max_fit_points)
+    assert config.local.max_fit_points == 200
+    assert config.local.auto.max_fit_points == LocalFitConfig().auto.max_fit_points
 
 
 @pytest.mark.parametrize("bad", [{"max_missed": 0}, {"tf_timeout": -1}, {"max_points": 0}, {"search_period": "x"}])
