@@ -9,7 +9,7 @@ IN_DEVEL    := bash -c 'source $(DEVEL_SETUP) && exec "$$@"' --
 PYTEST_ARGS ?=
 BUILD_BENCH ?= OFF
 
-.PHONY: setup build demo test unit bench screenshots clean
+.PHONY: setup build demo demo-tracker test unit bench screenshots clean
 
 setup:
 	@tools/setup.sh
@@ -30,6 +30,11 @@ build: setup
 
 demo: build
 	@$(IN_DEVEL) tools/demo.sh
+
+# can_tracker on a generated moving stream at 30 Hz; prints the tracks. RVIZ=true also opens rviz.
+RVIZ ?= false
+demo-tracker: build
+	@$(IN_DEVEL) tools/demo_tracker.sh $(if $(filter true,$(RVIZ)),rviz)
 
 test: build
 	@$(IN_DEVEL) $(PYTHON) -m pytest test $(PYTEST_ARGS)

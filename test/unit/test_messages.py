@@ -1,6 +1,7 @@
 """Tests of example_pcl.messages: arrays -> poses and markers (message classes, no master)."""
 import numpy as np
 import pytest
+import rospy
 from geometry_msgs.msg import Pose, Transform
 from numpy.testing import assert_allclose
 from visualization_msgs.msg import Marker
@@ -92,3 +93,47 @@ def test_can_poses_and_markers_one_per_can(n):
         assert (marker.type, marker.action, marker.ns, marker.id) == (Marker.CYLINDER, Marker.ADD, messages.CANS_NS, i)
         assert marker.scale.x == pytest.approx(2 * can.radius) and marker.scale.z == pytest.approx(can.height)
         assert marker.header.stamp == stamp
+
+
+def _track(track_id, seen=True):
+    from example_pcl.tracking import Track
+
+    T = np.eye(4)
+    T[:3, 3] = (0.1 * track_id, 0.0, 1.0)
+    can = Can(T_sensor_from_can=T, radius=0.033, height=0.12, rms_error=0.001, arc_coverage=3.0, n_points=400,
+              n_fit_points=350, center_plane=np.zeros(2))
+    return Track(id=track_id, base_center=T[:3, 3].copy(), velocity=np.array([0.01, 0.0, 0.0]), axis=T[:3, 2].copy(),
+                 radius=0.0334, height=0.121, detection=can, age=4, missed=0 if seen else 2, confidence=0.9)
+
+
+def test_track_messages_carry_the_track_ids_and_smoothed_values():
+    """CanArray and PoseArray in the tracks' order; id, age, confidence, velocity and the smoothed size."""
+    tracks = [_track(3), _track(7)]
+    array, poses = messages.track_array(tracks, "base_link"), messages.track_poses(tracks, "base_link")
+    assert [c.id for c in array.cans] == [3, 7] and len(poses.poses) == 2
+    c = array.cans[0]
+    assert (c.radius, c.height, c.age, c.n_points) == (0.0334, 0.121, 4, 350)
+    assert c.confidence == pytest.approx(0.9) and c.velocity.x == pytest.approx(0.01)
+    assert c.pose.position.x == pytest.approx(0.3) and poses.poses[1].position.x == pytest.approx(0.7)
+
+
+def test_track_markers_use_the_track_id_and_delete_ended_tracks():
+    """A cylinder and a label per track with marker id = track id; a DELETE of both per ended id."""
+    stamp = rospy.Time(5)
+    markers = messages.track_markers([_track(3), _track(4, seen=False)], [1], "base_link", stamp).markers
+    cylinders = [m for m in markers if m.ns == messages.CANS_NS and m.action == Marker.ADD]
+    labels = [m for m in markers if m.ns == messages.LABELS_NS and m.action == Marker.ADD]
+    assert [m.id for m in cylinders] == [3, 4] and all(m.type == Marker.CYLINDER for m in cylinders)
+    assert [m.text for m in labels] == ["can 3, r 33 mm", "can 4, r 33 mm"]
+    assert cylinders[1].color.r == cylinders[1].color.g  # a coasting track is grey
+    deletes = [(m.ns, m.id, m.header.stamp) for m in markers if m.action == Marker.DELETE]
+    assert deletes == [(messages.CANS_NS, 1, stamp), (messages.LABELS_NS, 1, stamp)]
+
+
+def test_table_marker_spans_the_extent_in_the_plane():
+    """A thin CUBE centred on the extent's middle, in the plane z = 0 (its top face)."""
+    T = np.eye(4)
+    T[:3, 3] = (0.0, 0.0, 1.0)
+    m = messages.table_marker(T, (-0.2, 0.4, -0.1, 0.1), "camera")
+    assert m.type == Marker.CUBE and (m.scale.x, m.scale.y) == pytest.approx((0.6, 0.2))
+    assert (m.pose.position.x, m.pose.position.y, m.pose.position.z) == pytest.approx((0.1, 0.0, 1.0 - m.scale.z / 2))

@@ -72,3 +72,24 @@ def test_param_names_are_the_cfg_names():
     from example_pcl.reconfigure import param_names
 
     assert sorted(param_names(FinderConfig())) == sorted(n for n in generated.defaults if n != "groups")
+
+
+def test_can_tracker_cfg_defaults_are_the_dataclasses_defaults():
+    """CanTracker.cfg's defaults change nothing in LocalFitConfig (and its AutoConfig) or TrackerConfig,
+    and every one of its values reaches exactly one field."""
+    from example_pcl.local_fit import LocalFitConfig
+    from example_pcl.reconfigure import tracker_from_values, tracker_param_names
+    from example_pcl.tracking import TrackerConfig
+
+    tracker_cfg = pytest.importorskip("example_pcl.cfg.CanTrackerConfig")
+    defaults = {k: v for k, v in tracker_cfg.defaults.items() if k != "groups"}
+    local, tracker, log = tracker_from_values(LocalFitConfig(), TrackerConfig(), defaults)
+    assert (local, tracker, log) == (LocalFitConfig(), TrackerConfig(), [])
+    assert sorted(defaults) == sorted(tracker_param_names(LocalFitConfig(), TrackerConfig()))
+    for name, value in defaults.items():
+        new = next(c for c in ("organized", "euclidean") if c != value) if isinstance(value, str) else (
+            value + 1 if isinstance(value, int) else value * 1.01 + 1e-6)
+        if not isinstance(value, str) and not tracker_cfg.min[name] <= new <= tracker_cfg.max[name]:
+            new = value - 1 if isinstance(value, int) else value * 0.99
+        _, _, log = tracker_from_values(LocalFitConfig(), TrackerConfig(), dict(defaults, **{name: new}))
+        assert len(log) == 1 and log[0].startswith(name + " "), (name, log)
