@@ -28,7 +28,8 @@ and measured figures are in docs/can_search.md; in short, per cluster and round:
 6. The can's points are taken out of the cluster and the next round looks for another one.
 
 What no hypothesis claims stays a rejected object with the reason of its best hypothesis.
-Lying cans (axis parallel to the table) are looked for in what is left (see find_lying).
+Lying cans are not looked for yet: their side is no circle from above, so they are never reported
+as upright cans (CylinderHit and Can can carry a horizontal axis for when they are).
 """
 from dataclasses import dataclass, field
 from typing import List, Optional
@@ -51,9 +52,10 @@ class CylinderSearchConfig:
     table_gap: a base this close above min_height stands on the table; support_reach: a
     supporting surface is looked for this far around the can; occluder_reach: an object hiding
     the base is looked for this far in front. open_depth: a hollow cylinder shows points this far
-    below its rim; max_open_fraction: of the circle's near-half points, the far-half (or deep
-    inside) ones an open top shows at least. handle_reach: a handle sticks out at most this far;
-    max_handle_arc (rad), min_handle_points. lying: also look for lying cans; min_lying_length.
+    below its rim; max_open_fraction: of the circle's near-half points within open_window below the
+    rim, the far-half (or deep inside) ones an open top shows at least. handle_reach: a handle sticks out at most this far;
+    max_handle_arc (rad), min_handle_points. min_hidden_arc (rad): a side seen over less than
+    the criterion's min_arc but at least this is still a can when an object in front hides the rest.
     seed: of the RANSAC sampling (the result is the same for the same cloud).
     """
 
@@ -71,12 +73,12 @@ class CylinderSearchConfig:
     support_reach: float = 0.03
     occluder_reach: float = 0.3
     open_depth: float = 0.015
+    open_window: float = 0.05
     max_open_fraction: float = 0.15
     handle_reach: float = 0.035
     max_handle_arc: float = 1.3
     min_handle_points: int = 8
-    lying: bool = True
-    min_lying_length: float = 0.06
+    min_hidden_arc: float = 1.0
     seed: int = 0
 
     def validate(self):
@@ -173,7 +175,9 @@ def best_circles(xy, cx, cy, r, eps, count):
     for k in np.argsort(-score, kind="stable"):
         if score[k] < 3:
             break
-        if all(np.hypot(cx[k] - o[0], cy[k] - o[1]) > 0.5 * min(r[k], o[2]) for o in out):
+        # Distinct: another centre, or another radius about the same centre (a cup on a can).
+        if all(np.hypot(cx[k] - o[0], cy[k] - o[1]) > 0.5 * min(r[k], o[2]) or abs(r[k] - o[2]) > 2 * eps
+               for o in out):
             out.append((float(cx[k]), float(cy[k]), float(r[k]), int(score[k])))
             if len(out) == count:
                 break
@@ -248,12 +252,22 @@ def verify(points, cx, cy, r, ctx):
     sigma = _sigma(ctx, center3)
     r_eps = max(c.r_eps, c.r_eps_sigmas * sigma)
     dist = np.hypot(points[:, 0] - cx, points[:, 1] - cy)
-    on = np.abs(dist - r) <= r_eps
+    # An upright can shows the sensor its near half only: points on the circle's far half are the
+    # inside of something hollow (a cup's far wall), never a can's side.
+    facing = (points[:, :2] - (cx, cy)) @ _toward_sensor(cx, cy, ctx) > -0.25 * r
+    residual = dist - r
+    on = (np.abs(residual) <= r_eps) & facing
     inside = dist < r - r_eps
     bands = np.minimum((z / s.band_height).astype(np.int64), int(c.max_height / s.band_height))
     nb = int(bands.max()) + 1
     band_on = np.bincount(bands[on], minlength=nb)
     band_inside = np.bincount(bands[inside], minlength=nb)
+    # A band is on the circle when its points near it are centred on it, not offset (a cup a few
+    # millimetres wider standing on the can).
+    near = (np.abs(residual) <= 2 * r_eps) & facing
+    with np.errstate(invalid="ignore", divide="ignore"):
+        offset = np.bincount(bands[near], weights=residual[near], minlength=nb) / np.bincount(bands[near], minlength=nb)
+    band_on = np.where(np.abs(offset) <= 0.5 * r_eps, band_on, 0)
     run = band_run(band_on, band_inside, s.band_fraction, s.min_band_points, s.max_band_gap)
     if run is None:
         return None, "no band of points on the circle", None
@@ -302,7 +316,8 @@ def verify(points, cx, cy, r, ctx):
         return None, (f"radius {1e3 * r:.1f} mm outside [{1e3 * c.min_radius:.0f}, {1e3 * c.max_radius:.0f}] mm"
                       ), claim()
     dist = np.hypot(points[:, 0] - cx, points[:, 1] - cy)
-    on = np.abs(dist - r) <= r_eps
+    facing = (points[:, :2] - (cx, cy)) @ _toward_sensor(cx, cy, ctx) > -0.25 * r
+    on = (np.abs(dist - r) <= r_eps) & facing
     side = on & in_run
     below_rim = dist <= r + r_eps
     n_side = int(side.sum())
@@ -322,7 +337,7 @@ def verify(points, cx, cy, r, ctx):
         return None, f"rms residual {1e3 * rms:.2f} mm > {1e3 * max_rms:.2f} mm", None
     if shape > c.max_shape_error:
         return None, f"shape error {1e3 * shape:.2f} mm > {1e3 * c.max_shape_error:.2f} mm (not round)", None
-    if arc < c.min_arc:
+    if arc < c.min_arc and not (arc >= s.min_hidden_arc and _in_front(cx, cy, r, base, top, ctx)):
         return None, f"side seen over {arc:.2f} rad < {c.min_arc:.2f} rad", None
     # What it stands on.
     support, base_seen, base_z = _support(points, cx, cy, r, base, r_eps, sigma, ctx)
@@ -379,8 +394,10 @@ def _support(points, cx, cy, r, base, r_eps, sigma, ctx):
     level = ((z >= base - 0.025 - 3 * sigma) & (z <= base + 0.005) & (dist > r + r_eps)
              & (dist <= r + s.support_reach))
     beside = level & (ahead < 0.5 * r)
-    if beside.sum() >= s.min_band_points:
-        base_z = float(np.median(z[level]))
+    # Or something right under it, narrower than it (the can a wider cup stands on).
+    under = (dist <= r + r_eps) & (z >= base - 0.03) & (z <= base - 0.005)
+    if beside.sum() >= s.min_band_points or under.sum() >= s.min_band_points:
+        base_z = float(np.median(z[level])) if beside.sum() >= s.min_band_points else base
         below = "object"
         for other in ctx.found:
             top = other.base_center[2] + other.height
@@ -401,6 +418,19 @@ def _support(points, cx, cy, r, base, r_eps, sigma, ctx):
     return None, False, base
 
 
+def _in_front(cx, cy, r, z_low, z_high, ctx):
+    """Whether some object stands in front of the can (toward the sensor, within occluder_reach,
+    less than 2 r to the side) as high as z_low..z_high: it may hide part of the can's side."""
+    s = ctx.search
+    front = _toward_sensor(cx, cy, ctx)
+    rel = ctx.standing[:, :2] - (cx, cy)
+    ahead = rel @ front
+    lateral = np.abs(rel[:, 0] * front[1] - rel[:, 1] * front[0])
+    z = ctx.standing[:, 2]
+    return bool(((ahead > r) & (ahead < r + s.occluder_reach) & (lateral < 2 * r) & (z >= z_low)
+                 & (z <= z_high)).sum() >= s.min_band_points)
+
+
 def _open_top(points, cx, cy, r, r_eps, base, top, ctx):
     """Why it is a hollow cylinder open at the top (a cup, mug, bowl or pot), or "".
 
@@ -416,8 +446,10 @@ def _open_top(points, cx, cy, r, r_eps, base, top, ctx):
     ahead = rel @ _toward_sensor(cx, cy, ctx)
     low = (z < top - s.open_depth) & (z > base)
     on = np.abs(dist - r) <= r_eps
-    near = int((on & low & (ahead > 0.3 * r)).sum())
-    far = int((on & low & (ahead < -0.3 * r)).sum())
+    # Compared where both would show: the upper part (a cup's inside is seen only so deep).
+    upper = low & (z > top - s.open_window)
+    near = int((on & upper & (ahead > 0.3 * r)).sum())
+    far = int((on & upper & (ahead < -0.3 * r)).sum())
     deep = int(((dist < 0.7 * r) & low).sum())
     limit = max(s.min_band_points, s.max_open_fraction * near)
     if far >= limit:
@@ -446,8 +478,9 @@ def _handle(points, cx, cy, dist, r, r_eps, base, top, ctx):
         return ""
     start = a[(int(np.argmax(gaps)) + 1) % len(a)]
     span = (angle - start) % (2 * np.pi) <= arc + 1e-9
-    if (out & span & ((z <= base + 0.01) | (z >= top + 0.005))).any():
-        return ""
+    beyond = (dist > r + s.handle_reach) & (dist <= r + 2 * s.handle_reach)
+    if (out & span & ((z <= base + 0.01) | (z >= top + 0.005))).any() or (beyond & span).sum() >= s.min_handle_points:
+        return ""  # it reaches the support, the top or further out: another object touching it
     return (f"handle: {int(mid.sum())} points stick out of the side over {arc:.2f} rad without reaching the "
             "support (a mug)")
 
