@@ -294,23 +294,8 @@ def find_support_plane(xyz, viewpoint=(0.0, 0.0, 0.0), config=AutoConfig()):
 # --- the cans -------------------------------------------------------------------------------------
 
 
-def shape_error(xy, cx, cy, radius, bins):
-    """How far the points bend away from the circle systematically (m): the points are split by
-    angle around (cx, cy) into `bins` consecutive arcs of equal count, and the rms of the arcs'
-    mean radial residuals is returned. Noise averages out within an arc; a flat face does not."""
-    xy = np.asarray(xy, dtype=float)[:, :2]
-    if len(xy) < bins:
-        return float("inf")
-    angle = np.arctan2(xy[:, 1] - cy, xy[:, 0] - cx)
-    residual = np.hypot(xy[:, 0] - cx, xy[:, 1] - cy) - radius
-    # Start the arcs at the widest gap, so a side seen across the +-pi cut stays in order.
-    order = np.argsort(angle)
-    a = angle[order]
-    gaps = np.append(np.diff(a), a[0] + 2 * np.pi - a[-1])
-    start = (int(np.argmax(gaps)) + 1) % len(a)
-    order = np.roll(order, -start)
-    means = np.array([chunk.mean() for chunk in np.array_split(residual[order], bins)])
-    return float(np.sqrt(np.mean(means ** 2)))
+# The systematic radial deviation (issue 5's criterion, also can_search's): see geometry.shape_error.
+shape_error = g.shape_error
 
 
 def fit_upright_cylinder(points_plane, sensor_plane, config=AutoConfig()):
@@ -485,8 +470,9 @@ def _parser():
     d = AutoConfig()
     p = argparse.ArgumentParser(
         prog="find_cans",
-        description="Find every upright can standing on the table in a PCD scene (no selection) and "
-                    "print them as JSON (sensor frame, metres). Exits 0 also when there is none.")
+        description="Find every upright can standing on the table (or on an object on it) in a PCD scene "
+                    "(no selection) and print them as JSON (sensor frame, metres), each with its fit rms, "
+                    "visible arc, points, support and whether its base was seen. Exits 0 also when there is none.")
     p.add_argument("scene", metavar="SCENE.pcd", help="an organized (or unorganized) x y z PCD file")
     p.add_argument("--min-radius", type=float, default=d.min_radius, help="m (default %(default)s)")
     p.add_argument("--max-radius", type=float, default=d.max_radius, help="m (default %(default)s)")
@@ -498,6 +484,9 @@ def _parser():
     p.add_argument("--max-tilt", type=float, default=d.max_tilt, help="rad (default %(default)s)")
     p.add_argument("--clustering", choices=("auto", "organized", "euclidean"), default=d.clustering,
                    help="organized grid connected components or PCL's Euclidean clusters (default %(default)s)")
+    p.add_argument("--search", choices=SEARCHES, default=d.search,
+                   help="cylinders: cans inside clusters, stacked, partly hidden (issue 13); clusters: each "
+                        "cluster one upright can (issue 5) (default %(default)s)")
     p.add_argument("--indent", type=int, default=2, help="JSON indent (default %(default)s)")
     return p
 
@@ -511,7 +500,7 @@ def main(argv=None):
 
     config = AutoConfig(min_radius=args.min_radius, max_radius=args.max_radius, max_height=args.max_height,
                         up=None if args.up is None else tuple(args.up), max_tilt=args.max_tilt,
-                        clustering=args.clustering)
+                        clustering=args.clustering, search=args.search)
     try:
         config.validate()
         cloud = read_pcd(args.scene)

@@ -53,8 +53,8 @@ class CylinderSearchConfig:
     supporting surface is looked for this far around the can; occluder_reach: an object hiding
     the base is looked for this far in front. open_depth: a hollow cylinder shows points this far
     below its rim; max_open_fraction: of the circle's near-half points within open_window below the
-    rim, the far-half (or deep inside) ones an open top shows at least. handle_reach: a handle sticks out at most this far;
-    max_handle_arc (rad), min_handle_points. min_hidden_arc (rad): a side seen over less than
+    rim, the far-half (or deep inside) ones an open top shows at least. handle_reach: a handle
+    sticks out at most this far; max_handle_arc (rad), min_handle_points. min_hidden_arc (rad): a side seen over less than
     the criterion's min_arc but at least this is still a can when an object in front hides the rest.
     seed: of the RANSAC sampling (the result is the same for the same cloud).
     """
@@ -251,7 +251,18 @@ def verify(points, cx, cy, r, ctx):
     center3 = np.array([cx, cy, float(np.median(z))])
     sigma = _sigma(ctx, center3)
     r_eps = max(c.r_eps, c.r_eps_sigmas * sigma)
+    # The triplet's circle is only as good as three noisy points: one linear (Kasa) fit to the
+    # points near it, on its near half, before the bands judge it.
     dist = np.hypot(points[:, 0] - cx, points[:, 1] - cy)
+    close = (np.abs(dist - r) <= r_eps) & ((points[:, :2] - (cx, cy)) @ _toward_sensor(cx, cy, ctx) > -0.25 * r)
+    if close.sum() >= c.min_fit_points:
+        try:
+            kx, ky, kr = g.fit_circle_algebraic(points[close, :2])
+            if abs(kr - r) < 2 * r_eps and np.hypot(kx - cx, ky - cy) < 2 * r_eps:
+                cx, cy, r = kx, ky, kr
+                dist = np.hypot(points[:, 0] - cx, points[:, 1] - cy)
+        except PerceptionError:
+            pass
     # An upright can shows the sensor its near half only: points on the circle's far half are the
     # inside of something hollow (a cup's far wall), never a can's side.
     facing = (points[:, :2] - (cx, cy)) @ _toward_sensor(cx, cy, ctx) > -0.25 * r
@@ -279,9 +290,9 @@ def verify(points, cx, cy, r, ctx):
     while lo < hi and band_on[lo] > crowded and band_out[lo] >= 0.3 * band_on[lo]:
         lo += 1
     z_lo, z_hi = lo * s.band_height, (hi + 1) * s.band_height
-    # The top: the lid just above the run (99th percentile of the disc's points up to a band above);
+    # The top: the lid just above the run (99th percentile of the disc's points up to 2 bands above);
     # the side ends top_margin (and 3 sigma) below it, so the lid's rim is no side point.
-    disc = (dist <= r + r_eps) & (z >= z_lo) & (z < z_hi + s.band_height)
+    disc = (dist <= r + r_eps) & (z >= z_lo) & (z < z_hi + 2 * s.band_height)
     top = float(np.percentile(z[disc], 99))
     in_run = (z >= z_lo) & (z < min(z_hi, top - c.top_margin - 3 * sigma))
     side = on & in_run
@@ -325,7 +336,7 @@ def verify(points, cx, cy, r, ctx):
     rms = float(np.sqrt(np.mean(residual ** 2)))
     max_rms = max(c.max_rms, c.max_rms_sigmas * sigma)
     sxy = points[side, :2]
-    shape = _shape_error(sxy, cx, cy, r, c.shape_bins)
+    shape = g.shape_error(sxy, cx, cy, r, c.shape_bins)
     arc = g.arc_coverage(sxy, cx, cy)
     base = float(np.percentile(z[side], 1))
     # Inlier fraction of the side below the lid: points inside the disc there are no can's.
@@ -356,21 +367,6 @@ def verify(points, cx, cy, r, ctx):
                       height=height, rms_error=rms, arc_coverage=arc, n_points=int(mine.sum()), n_fit_points=n_side,
                       shape_error=shape, support=support, base_seen=base_seen, indices=mine)
     return hit, None, None
-
-
-def _shape_error(xy, cx, cy, radius, bins):
-    """auto_finder.shape_error (kept here so the modules do not import each other)."""
-    if len(xy) < bins:
-        return float("inf")
-    angle = np.arctan2(xy[:, 1] - cy, xy[:, 0] - cx)
-    residual = np.hypot(xy[:, 0] - cx, xy[:, 1] - cy) - radius
-    order = np.argsort(angle)
-    a = angle[order]
-    gaps = np.append(np.diff(a), a[0] + 2 * np.pi - a[-1])
-    order = np.roll(order, -((int(np.argmax(gaps)) + 1) % len(a)))
-    chunks = np.array_split(residual[order], bins)
-    means = np.array([chunk.mean() for chunk in chunks])
-    return float(np.sqrt(np.mean(means ** 2)))
 
 
 def _toward_sensor(cx, cy, ctx):
