@@ -501,6 +501,11 @@ def search_cluster(points, ctx):
         if not candidates:
             last = last or ("no circle of a can's radius through its points", None)
             break
+        # A circle through a lid or a box's top has its points at one height: no side, not verified.
+        z_pool = points[pool, 2]
+        candidates = [h for h in candidates
+                      if np.ptp(z_pool[np.abs(np.hypot(xy[:, 0] - h[0], xy[:, 1] - h[1]) - h[2]) <= r_eps])
+                      >= 0.5 * c.min_can_height]
         progress = False
         for cx0, cy0, r0, _ in candidates:
             hit, reason, claim = verify(points[idx], cx0, cy0, r0, ctx)
