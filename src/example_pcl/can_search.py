@@ -203,24 +203,21 @@ def band_run(band_on, band_inside, fraction, min_points, max_gap):
     good = (band_on >= need) & side_like
     if not good[start]:
         return None
-    lo = hi = start
-    gap = 0
-    for b in range(start - 1, -1, -1):
+    return _last_good(good, start, range(start - 1, -1, -1), max_gap), _last_good(good, start,
+                                                                                range(start + 1, len(good)), max_gap)
+
+
+def _last_good(good, start, order, max_gap):
+    """The last good band met walking `order` from start, over gaps of at most max_gap bands."""
+    last, gap = start, 0
+    for b in order:
         if good[b]:
-            lo, gap = b, 0
+            last, gap = b, 0
         else:
             gap += 1
             if gap > max_gap:
                 break
-    gap = 0
-    for b in range(start + 1, len(good)):
-        if good[b]:
-            hi, gap = b, 0
-        else:
-            gap += 1
-            if gap > max_gap:
-                break
-    return lo, hi
+    return last
 
 
 # --- one cluster ----------------------------------------------------------------------------------
