@@ -194,7 +194,8 @@ def main(argv=None):
     if ("real: all", "can_search") in tallies:
         a, b = tallies[("real: all", "can_search")].times, tallies[("real: all", "issue 5 finder")].times
         ratio = (f"\n\nTime ratio can_search / issue 5 finder on the real scenes: median "
-                 f"{statistics.median(a) / statistics.median(b):.2f}, p90 {np.percentile(a, 90) / np.percentile(b, 90):.2f}.")
+                 f"{statistics.median(a) / statistics.median(b):.2f}, "
+                 f"p90 {np.percentile(a, 90) / np.percentile(b, 90):.2f}.")
     text = (f"`bench/bench_cans.py` (seeds {', '.join(map(str, args.seeds))}; {args.repeats} searches per real scene "
             f"and finder), {machine_line()}\n\n" + table(header, rows) + ratio)
     print(text)

@@ -54,8 +54,9 @@ class CylinderSearchConfig:
     the base is looked for this far in front. open_depth: a hollow cylinder shows points this far
     below its rim; max_open_fraction: of the circle's near-half points within open_window below the
     rim, the far-half (or deep inside) ones an open top shows at least. handle_reach: a handle
-    sticks out at most this far; max_handle_arc (rad), min_handle_points. min_hidden_arc (rad): a side seen over less than
-    the criterion's min_arc but at least this is still a can when an object in front hides the rest.
+    sticks out at most this far; max_handle_arc (rad), min_handle_points. min_hidden_arc (rad): a
+    side seen over less than the criterion's min_arc but at least this is still a can when an
+    object in front hides the rest.
     seed: of the RANSAC sampling (the result is the same for the same cloud).
     """
 
@@ -350,7 +351,8 @@ def verify(points, cx, cy, r, ctx):
     # What it stands on.
     support, base_seen, base_z = _support(points, cx, cy, r, base, r_eps, sigma, ctx)
     if support is None:
-        return None, f"its lowest side point is {100 * base:.1f} cm above the table with nothing under it (floats)", None
+        return None, (f"its lowest side point is {100 * base:.1f} cm above the table with nothing under it "
+                      "(floats)"), None
     height = top - base_z
     if height < c.min_can_height or top - base < min(c.min_can_height, 0.6 * height):
         return None, (f"one circle explains only {100 * (top - base):.1f} cm of it (min "

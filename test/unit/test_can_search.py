@@ -127,8 +127,10 @@ def test_base_hidden_behind_a_box_is_inferred_on_the_table():
 
 def test_cups_mugs_bowls_boxes_and_prisms_are_no_cans():
     """An open cup, a mug, a bowl, a turned box and a prism: no can, each rejection with a reason."""
-    objects = [Obj("cup", -0.15, 0.0, radius=0.04, height=0.1), Obj("mug", 0.0, 0.12, radius=0.04, height=0.09, yaw=1.0),
-               Obj("bowl", 0.15, 0.0, radius=0.07, height=0.06), Obj("box", 0.0, -0.1, size=(0.05, 0.05, 0.15), yaw=0.7),
+    objects = [Obj("cup", -0.15, 0.0, radius=0.04, height=0.1),
+               Obj("mug", 0.0, 0.12, radius=0.04, height=0.09, yaw=1.0),
+               Obj("bowl", 0.15, 0.0, radius=0.07, height=0.06),
+               Obj("box", 0.0, -0.1, size=(0.05, 0.05, 0.15), yaw=0.7),
                Obj("prism", 0.12, -0.15, radius=0.045, height=0.12)]
     _, result, _ = search(objects, camera_distance=1.0)
     assert result.cans == [], result.message
