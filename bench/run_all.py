@@ -26,6 +26,7 @@ def main():
     if (HERE / "bench_find_can.py").exists():
         run("bench_find_can.py")
     run("bench_auto.py")  # writes its own section of docs/benchmarks.md (auto)
+    run("bench_cans.py")  # writes its figures into docs/can_search.md
 
 
 if __name__ == "__main__":

@@ -55,6 +55,9 @@ FIELD_OF = {"auto_refine_iterations": "refine_iterations", "auto_r_eps": "r_eps"
 
 CLUSTERING = ("auto", "organized", "euclidean")
 
+# AutoConfig.search (example_pcl.auto_finder.SEARCHES).
+SEARCHES = ("cylinders", "clusters")
+
 
 def add_can_search(gen, level=0):
     """Adds the groups table, objects, fit and criterion (and the clustering enum) to a generator."""
@@ -70,4 +73,8 @@ def add_can_search(gen, level=0):
                           "organized grid (an H x W cloud), the Euclidean clusters of PCL, or auto")
     groups["objects"].add("clustering", str_t, level, "how points above the table are clustered", "auto",
                           edit_method=clustering)
+    search = gen.enum([gen.const(f"search_{c}", str_t, c, f"{c} search") for c in SEARCHES],
+                      "cans inside clusters (cylinders, issue 13) or each cluster one can (clusters, issue 5)")
+    groups["objects"].add("search", str_t, level, "how cans are looked for in the objects", "cylinders",
+                          edit_method=search)
     return groups

@@ -46,6 +46,7 @@ selection at all:
 Everything is in metres and radians; "sensor frame" is the frame of the input cloud.
 """
 import argparse
+import dataclasses
 import json
 import sys
 import time
@@ -55,10 +56,15 @@ from typing import List, Optional, Tuple
 import numpy as np
 
 from example_pcl import _native
+from example_pcl import can_search
 from example_pcl import geometry as g
 from example_pcl import transforms
 from example_pcl.can import Can
 from example_pcl.errors import PerceptionError
+
+
+# AutoConfig.search: inside clusters (can_search, issue 13), or each cluster one can (issue 5).
+SEARCHES = ("cylinders", "clusters")
 
 
 @dataclass(frozen=True)
@@ -92,6 +98,10 @@ class AutoConfig:
     Criterion (see the module docstring): max_base_gap, min_can_height, min_fit_points,
     min_radius, max_radius, min_inlier_fraction, max_rms, max_rms_sigmas, shape_bins,
     max_shape_error, min_arc.
+
+    search: "cylinders" (default; can_search: cans inside clusters, stacked, partly hidden, lying,
+    with the cup and handle rules) or "clusters" (each cluster one upright can, the issue 5
+    finder); cylinders: can_search.CylinderSearchConfig, the former's own parameters.
     """
 
     ransac_step: int = 8
@@ -133,6 +143,9 @@ class AutoConfig:
     max_shape_error: float = 0.001
     min_arc: float = 1.8
 
+    search: str = "cylinders"
+    cylinders: can_search.CylinderSearchConfig = can_search.CylinderSearchConfig()
+
     def validate(self):
         """Raises PerceptionError naming the first value that makes no sense."""
         positive = ("ransac_step", "plane_distance", "max_planes", "refine_step", "refine_band", "refine_iterations",
@@ -150,6 +163,9 @@ class AutoConfig:
         if self.clustering not in ("auto", "organized", "euclidean"):
             raise PerceptionError("AutoConfig.clustering must be auto, organized or euclidean, "
                                   f"got {self.clustering!r}")
+        if self.search not in SEARCHES:
+            raise PerceptionError(f"AutoConfig.search must be one of {', '.join(SEARCHES)}, got {self.search!r}")
+        self.cylinders.validate()
         if self.up is not None:
             g.unit_vector(self.up, "AutoConfig.up")
 
@@ -278,23 +294,8 @@ def find_support_plane(xyz, viewpoint=(0.0, 0.0, 0.0), config=AutoConfig()):
 # --- the cans -------------------------------------------------------------------------------------
 
 
-def shape_error(xy, cx, cy, radius, bins):
-    """How far the points bend away from the circle systematically (m): the points are split by
-    angle around (cx, cy) into `bins` consecutive arcs of equal count, and the rms of the arcs'
-    mean radial residuals is returned. Noise averages out within an arc; a flat face does not."""
-    xy = np.asarray(xy, dtype=float)[:, :2]
-    if len(xy) < bins:
-        return float("inf")
-    angle = np.arctan2(xy[:, 1] - cy, xy[:, 0] - cx)
-    residual = np.hypot(xy[:, 0] - cx, xy[:, 1] - cy) - radius
-    # Start the arcs at the widest gap, so a side seen across the +-pi cut stays in order.
-    order = np.argsort(angle)
-    a = angle[order]
-    gaps = np.append(np.diff(a), a[0] + 2 * np.pi - a[-1])
-    start = (int(np.argmax(gaps)) + 1) % len(a)
-    order = np.roll(order, -start)
-    means = np.array([chunk.mean() for chunk in np.array_split(residual[order], bins)])
-    return float(np.sqrt(np.mean(means ** 2)))
+# The systematic radial deviation (issue 5's criterion, also can_search's): see geometry.shape_error.
+shape_error = g.shape_error
 
 
 def fit_upright_cylinder(points_plane, sensor_plane, config=AutoConfig()):
@@ -368,6 +369,57 @@ def _clusters(in_plane, config):
     return _native.euclidean_clusters(in_plane, config.cluster_distance, config.min_cluster_points, indices=idx)
 
 
+def _grid_indices(flat, grid_shape, full_shape, step):
+    """Flattened indices into the searched grid (every step-th pixel) as flattened indices into
+    the whole cloud (organized (H, W) or unorganized (N,))."""
+    flat = np.asarray(flat, dtype=np.int64)
+    if len(full_shape) == 1:
+        return flat * (step * step)
+    rows, cols = np.divmod(flat, grid_shape[1])
+    return rows * step * full_shape[1] + cols * step
+
+
+def _can_from_hit(hit, T_sensor_from_plane, indices):
+    """A can_search.CylinderHit (plane frame) as a Can (sensor frame)."""
+    z = np.asarray(hit.axis, dtype=float)
+    x = np.array([1.0, 0.0, 0.0]) if abs(z[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    x -= (x @ z) * z
+    x /= np.linalg.norm(x)
+    T_plane_from_can = np.eye(4)
+    T_plane_from_can[:3, 0], T_plane_from_can[:3, 1], T_plane_from_can[:3, 2] = x, np.cross(z, x), z
+    T_plane_from_can[:3, 3] = hit.base_center
+    return Can(T_sensor_from_can=transforms.compose(T_sensor_from_plane, T_plane_from_can), radius=hit.radius,
+               height=hit.height, rms_error=hit.rms_error, arc_coverage=hit.arc_coverage, n_points=hit.n_points,
+               n_fit_points=hit.n_fit_points, center_plane=np.asarray(hit.base_center[:2], dtype=float),
+               shape_error=hit.shape_error, indices=indices, support=hit.support, base_seen=hit.base_seen,
+               support_height=float(hit.base_center[2]) if hit.upright else 0.0, lying=not hit.upright)
+
+
+def _search_cylinders(pts, T, viewpoint, config):
+    """Step 2 and 3 by can_search (cans inside clusters): (cans, rejected, stage timings)."""
+    t0 = time.perf_counter()
+    step = int(config.cylinders.grid_step)
+    grid = g.subsample(pts, step)
+    T_plane_from_sensor = transforms.invert(T)
+    in_plane = _native.transform_cloud(grid, T_plane_from_sensor)
+    sensor_plane = transforms.apply(T_plane_from_sensor, g.as_vector3(viewpoint, "viewpoint"))
+    t1 = time.perf_counter()
+    # The grid has 1 / step^2 of the points: so has a cluster.
+    grid_config = dataclasses.replace(config, min_cluster_points=max(int(config.min_cluster_points / step ** 2), 3))
+    clusters = _clusters(in_plane, grid_config)
+    standing = _native.extract(in_plane, g.points_above_plane(in_plane, config.min_height, config.max_height))
+    t2 = time.perf_counter()
+    points = [_native.extract(in_plane, idx).astype(float) for idx in clusters]
+    hits, rejections = can_search.search(points, standing, sensor_plane, config)
+    cans = [_can_from_hit(hit, T, _grid_indices(clusters[k][hit.indices], in_plane.shape[:-1], pts.shape[:-1], step))
+            for k, hit in hits]
+    rejected = [RejectedCluster(centroid=transforms.apply(T, rj.centroid), n_points=rj.n_points, reason=rj.reason,
+                                radius=rj.radius) for _, rj in rejections]
+    cans.sort(key=lambda c: -c.n_fit_points)
+    t3 = time.perf_counter()
+    return cans, rejected, {"transform": t1 - t0, "clusters": t2 - t1, "fits": t3 - t2}
+
+
 def find_cans(xyz, viewpoint=(0.0, 0.0, 0.0), config=AutoConfig()):
     """Every upright can standing on the support plane of a cloud, with no selection: an AutoResult.
 
@@ -381,6 +433,12 @@ def find_cans(xyz, viewpoint=(0.0, 0.0, 0.0), config=AutoConfig()):
     pts = g.as_points_float32(xyz)
     plane, T, candidates = find_support_plane(pts, viewpoint, config)
     t1 = time.perf_counter()
+    if config.search == "cylinders":
+        cans, rejected, stages = _search_cylinders(pts, T, viewpoint, config)
+        t4 = time.perf_counter()
+        timings = {"table": t1 - t0, **stages, "total": t4 - t0}
+        return AutoResult(table=plane, T_sensor_from_plane=T, cans=cans, rejected=rejected,
+                          candidate_planes=candidates, timings=timings)
     T_plane_from_sensor = transforms.invert(T)
     in_plane = _native.transform_cloud(pts, T_plane_from_sensor)
     sensor_plane = transforms.apply(T_plane_from_sensor, g.as_vector3(viewpoint, "viewpoint"))
@@ -412,8 +470,9 @@ def _parser():
     d = AutoConfig()
     p = argparse.ArgumentParser(
         prog="find_cans",
-        description="Find every upright can standing on the table in a PCD scene (no selection) and "
-                    "print them as JSON (sensor frame, metres). Exits 0 also when there is none.")
+        description="Find every upright can standing on the table (or on an object on it) in a PCD scene "
+                    "(no selection) and print them as JSON (sensor frame, metres), each with its fit rms, "
+                    "visible arc, points, support and whether its base was seen. Exits 0 also when there is none.")
     p.add_argument("scene", metavar="SCENE.pcd", help="an organized (or unorganized) x y z PCD file")
     p.add_argument("--min-radius", type=float, default=d.min_radius, help="m (default %(default)s)")
     p.add_argument("--max-radius", type=float, default=d.max_radius, help="m (default %(default)s)")
@@ -425,6 +484,9 @@ def _parser():
     p.add_argument("--max-tilt", type=float, default=d.max_tilt, help="rad (default %(default)s)")
     p.add_argument("--clustering", choices=("auto", "organized", "euclidean"), default=d.clustering,
                    help="organized grid connected components or PCL's Euclidean clusters (default %(default)s)")
+    p.add_argument("--search", choices=SEARCHES, default=d.search,
+                   help="cylinders: cans inside clusters, stacked, partly hidden (issue 13); clusters: each "
+                        "cluster one upright can (issue 5) (default %(default)s)")
     p.add_argument("--indent", type=int, default=2, help="JSON indent (default %(default)s)")
     return p
 
@@ -438,7 +500,7 @@ def main(argv=None):
 
     config = AutoConfig(min_radius=args.min_radius, max_radius=args.max_radius, max_height=args.max_height,
                         up=None if args.up is None else tuple(args.up), max_tilt=args.max_tilt,
-                        clustering=args.clustering)
+                        clustering=args.clustering, search=args.search)
     try:
         config.validate()
         cloud = read_pcd(args.scene)

@@ -1,4 +1,4 @@
-"""The result type of every can finder: :class:`Can`, an upright can on the table, sensor frame.
+"""The result type of every can finder: :class:`Can`, a can on the table (or on an object), sensor frame.
 
 Both the operator's modes 2-3 (example_pcl.can_finder) and the automatic search
 (example_pcl.auto_finder, mode 4) return it. Pure NumPy; knows nothing of ROS.
@@ -24,8 +24,11 @@ class Can:
     converged: of the fit (True for mode 2's guess, which is not iterated); shape_error (mode 4
     only, else None): the systematic radial deviation (see auto_finder.shape_error); indices
     (mode 4 only, else None): int64 indices of its cluster's points into the flattened cloud;
-    support: what the can stands on ("table", or the object below it); base_seen: False when the
-    base was hidden and inferred from the support.
+    support: what the can stands on ("table"; "object" or "can": stacked on another object or a
+    found can); base_seen: False when the base was hidden behind an object in front and inferred
+    on the support; support_height: the base's height above the table (m; 0 on the table); lying:
+    the can lies on its side (its axis, z of T_sensor_from_can, parallel to the table; origin the
+    centre of one end, height its length).
     """
 
     T_sensor_from_can: np.ndarray
@@ -42,6 +45,8 @@ class Can:
     indices: Optional[np.ndarray] = field(default=None, repr=False)
     support: str = "table"
     base_seen: bool = True
+    support_height: float = 0.0
+    lying: bool = False
 
     @property
     def base_center(self):
@@ -50,7 +55,7 @@ class Can:
 
     @property
     def axis(self):
-        """Unit axis of the can, up from the table, sensor frame: float64 (3,)."""
+        """Unit axis of the can (up from the table when upright), sensor frame: float64 (3,)."""
         return self.T_sensor_from_can[:3, 2].copy()
 
     def to_dict(self):
@@ -60,4 +65,5 @@ class Can:
                 "arc_coverage": self.arc_coverage, "n_points": self.n_points, "n_fit_points": self.n_fit_points,
                 "center_plane": np.asarray(self.center_plane).tolist(), "iterations": self.iterations,
                 "converged": self.converged, "support": self.support, "base_seen": self.base_seen,
+                "support_height": self.support_height, "lying": self.lying,
                 "T_sensor_from_can": self.T_sensor_from_can.tolist()}

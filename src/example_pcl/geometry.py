@@ -493,3 +493,22 @@ def plane_extent(points, T_sensor_from_plane, band, step=8, quantile=0.01):
         return None
     (x0, y0), (x1, y1) = np.quantile(near[:, :2], [quantile, 1.0 - quantile], axis=0)
     return float(x0), float(x1), float(y0), float(y1)
+
+
+def shape_error(xy, cx, cy, radius, bins):
+    """How far the points bend away from the circle systematically (m): the points are split by
+    angle around (cx, cy) into `bins` consecutive arcs of equal count, and the rms of the arcs'
+    mean radial residuals is returned. Noise averages out within an arc; a flat face does not."""
+    xy = np.asarray(xy, dtype=float)[:, :2]
+    if len(xy) < bins:
+        return float("inf")
+    angle = np.arctan2(xy[:, 1] - cy, xy[:, 0] - cx)
+    residual = np.hypot(xy[:, 0] - cx, xy[:, 1] - cy) - radius
+    # Start the arcs at the widest gap, so a side seen across the +-pi cut stays in order.
+    order = np.argsort(angle)
+    a = angle[order]
+    gaps = np.append(np.diff(a), a[0] + 2 * np.pi - a[-1])
+    start = (int(np.argmax(gaps)) + 1) % len(a)
+    order = np.roll(order, -start)
+    means = np.array([chunk.mean() for chunk in np.array_split(residual[order], bins)])
+    return float(np.sqrt(np.mean(means ** 2)))

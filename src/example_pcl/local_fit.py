@@ -148,9 +148,12 @@ def refit_can(xyz, T_sensor_from_plane, can, config=LocalFitConfig(), viewpoint=
     T_plane_from_sensor = transforms.invert(T_sensor_from_plane)
     window = _native.transform_cloud(pts[r0:r1, c0:c1], T_plane_from_sensor)
     center = transforms.apply(T_plane_from_sensor, np.asarray(can.base_center, dtype=float))
+    # A can standing on an object (can_search) keeps that base height: its side starts there.
+    base = float(can.support_height)
+    low = a.min_height if base <= 0 else base + a.fit_bottom
     with np.errstate(invalid="ignore"):
         dx, dy, z = window[..., 0] - center[0], window[..., 1] - center[1], window[..., 2]
-        region = (dx * dx + dy * dy <= (can.radius + c.region_margin) ** 2) & (z > a.min_height) & (z <= a.max_height)
+        region = (dx * dx + dy * dy <= (can.radius + c.region_margin) ** 2) & (z > low) & (z <= a.max_height)
     rows, cols = np.nonzero(region)
     if len(rows) < a.min_fit_points:
         raise PerceptionError(f"{len(rows)} point(s) where the can was (min {a.min_fit_points})")
@@ -160,7 +163,7 @@ def refit_can(xyz, T_sensor_from_plane, can, config=LocalFitConfig(), viewpoint=
     height = float(np.partition(z, top)[top])  # the 99th percentile, as the full search takes it
     sensor = transforms.apply(T_plane_from_sensor, _point(viewpoint))
     sigma = a.noise_coefficient * float(np.sum((points.mean(axis=0) - sensor) ** 2))
-    side = points[(z >= a.fit_bottom + 3 * sigma) & (z <= height - a.top_margin - 3 * sigma)]
+    side = points[(z >= max(base, 0.0) + a.fit_bottom + 3 * sigma) & (z <= height - a.top_margin - 3 * sigma)]
     if len(side) < a.min_fit_points:
         raise PerceptionError(f"{len(side)} side point(s) where the can was (min {a.min_fit_points})")
     if len(side) > c.max_fit_points:
@@ -181,10 +184,12 @@ def refit_can(xyz, T_sensor_from_plane, can, config=LocalFitConfig(), viewpoint=
     if shape > a.max_shape_error:
         raise PerceptionError(f"shape error {1e3 * shape:.2f} mm > {1e3 * a.max_shape_error:.2f} mm (not round)")
     T_can = g.can_pose(T_sensor_from_plane, fit.cx, fit.cy)
+    T_can = T_can @ transforms.from_translation_quaternion_xyzw((0.0, 0.0, base), (0.0, 0.0, 0.0, 1.0))
     indices = (rows + r0).astype(np.int64) * pts.shape[1] + cols + c0
-    return Can(T_sensor_from_can=T_can, radius=fit.radius, height=height, rms_error=fit.rms_error,
+    return Can(T_sensor_from_can=T_can, radius=fit.radius, height=height - base, rms_error=fit.rms_error,
                arc_coverage=fit.arc_coverage, n_points=len(rows), n_fit_points=fit.n_inliers,
-               center_plane=fit.center, shape_error=shape, indices=indices)
+               center_plane=fit.center, shape_error=shape, indices=indices, support=can.support,
+               base_seen=can.base_seen, support_height=base)
 
 
 # --- scene change ---------------------------------------------------------------------------------
@@ -301,6 +306,9 @@ class LocalFinder:
         t = time.perf_counter()
         cans = []
         for k, can in enumerate(self._cans):
+            if can.lying:  # refit_can fits upright cans; a lying one is kept until the next search
+                cans.append(can)
+                continue
             try:
                 cans.append(refit_can(pts, T, can, c, self.viewpoint))
             except PerceptionError as e:

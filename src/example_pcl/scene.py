@@ -30,6 +30,7 @@ from typing import List, Optional, Tuple
 
 import numpy as np
 
+from example_pcl import scene_objects
 from example_pcl import transforms
 from example_pcl.errors import PerceptionError
 
@@ -48,6 +49,7 @@ LABEL_TABLE_EDGE = 3  # the table slab's sides
 LABEL_CAN_SIDE = 100  # + can index
 LABEL_CAN_TOP = 200  # + can index
 LABEL_BOX = 300  # + box index
+LABEL_OBJECT = 400  # + index into SceneSpec.objects
 
 # Colours (rgb) before shading.
 _COLOURS = {
@@ -57,6 +59,7 @@ _COLOURS = {
     "can": (200, 28, 36),
     "can_top": (214, 120, 124),
     "box": (40, 70, 205),
+    "object": (60, 170, 80),
 }
 
 
@@ -78,6 +81,8 @@ class SceneSpec:
         which the Kinect returns nothing. projector_offset: the IR projector's +x offset from the
         camera; 0 disables the shadow.
     seed: of the random generator (noise, dropout) when generate_scene() is given none.
+    objects: more objects (example_pcl.scene_objects.Obj: cups, mugs, bowls, lying cans, tins,
+        turned boxes, prisms, anything stacked), in the table frame.
     """
 
     camera_distance: float = 1.0
@@ -94,6 +99,7 @@ class SceneSpec:
     max_range: float = 4.0
     projector_offset: float = 0.075
     seed: Optional[int] = 0
+    objects: List[scene_objects.Obj] = field(default_factory=list)
 
     def validate(self):
         """Raises PerceptionError naming the first value that cannot make a scene."""
@@ -124,6 +130,8 @@ class SceneSpec:
                 raise PerceptionError(f"box {i} must be (x, y, size_x, size_y, size_z), got {box}")
             if not all(s > 0 for s in box[2:]):
                 raise PerceptionError(f"box {i}: sizes must be > 0 m, got {box[2:]}")
+        for obj in self.objects:
+            obj.validate()
 
 
 @dataclass
@@ -269,6 +277,10 @@ def _cast(spec, o, d, t_min):
         hi = np.array([bx + sx / 2, by + sy / 2, sz])
         t, nrm, _ = _hit_box(o, d, lo, hi, t_min)
         take(t, LABEL_BOX + i, nrm)
+
+    for i, obj in enumerate(spec.objects):
+        t, nrm = scene_objects.hit_object(obj, o, d, t_min)
+        take(t, LABEL_OBJECT + i, nrm)
     return t_best, label, normal
 
 
@@ -278,7 +290,8 @@ def _base_colours(labels):
         rgb[labels == lab] = _COLOURS[name]
     rgb[(labels >= LABEL_CAN_SIDE) & (labels < LABEL_CAN_TOP)] = _COLOURS["can"]
     rgb[(labels >= LABEL_CAN_TOP) & (labels < LABEL_BOX)] = _COLOURS["can_top"]
-    rgb[labels >= LABEL_BOX] = _COLOURS["box"]
+    rgb[(labels >= LABEL_BOX) & (labels < LABEL_OBJECT)] = _COLOURS["box"]
+    rgb[labels >= LABEL_OBJECT] = _COLOURS["object"]
     return rgb
 
 
@@ -341,16 +354,22 @@ def generate_scene(spec=None, rng=None):
     z = np.where(returned, z, np.nan)
     xyz = (rays_cam * z[:, None]).astype(np.float32).reshape(HEIGHT, WIDTH, 3)
 
+    # An object's base is seen when some of the lowest 2 cm of it returned depth.
+    seen = np.flatnonzero(returned & (labels >= LABEL_OBJECT))
+    heights = cam[2] + depth[seen] * rays[seen, 2]
+    base_seen = [bool(np.any(heights[labels[seen] == LABEL_OBJECT + i] < obj.z + 0.02))
+                 for i, obj in enumerate(spec.objects)]
+
     return Scene(
         xyz=xyz,
         rgb=np.clip(np.round(rgb), 0, 255).astype(np.uint8).reshape(HEIGHT, WIDTH, 3),
         labels=labels.reshape(HEIGHT, WIDTH),
-        truth=_truth(spec, T_table_cam),
+        truth=_truth(spec, T_table_cam, base_seen),
         spec=spec,
     )
 
 
-def _truth(spec, T_table_cam):
+def _truth(spec, T_table_cam, base_seen=()):
     T = transforms.invert(T_table_cam)  # camera_from_table
     R = T[:3, :3]
     up = R[:, 2]
@@ -376,6 +395,7 @@ def _truth(spec, T_table_cam):
         "floor": plane((0, 0, -spec.table_height)),
         "cans": cans,
         "boxes": boxes,
+        "objects": [scene_objects.truth(obj, T, seen) for obj, seen in zip(spec.objects, base_seen)],
         "spec": json.loads(json.dumps(dataclasses.asdict(spec))),  # tuples become lists
     }
 

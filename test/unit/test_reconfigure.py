@@ -25,9 +25,13 @@ def test_cfg_defaults_are_the_finders_defaults():
     assert updated == FinderConfig()
 
 
+# The string parameters' other choices (AutoConfig.clustering, AutoConfig.search).
+CHOICES = {"clustering": ("organized", "euclidean"), "search": ("cylinders", "clusters")}
+
+
 def perturbed(name, value):
     if isinstance(value, str):
-        return next(c for c in ("organized", "euclidean") if c != value)
+        return next(c for c in CHOICES[name] if c != value)
     low, high = generated.min[name], generated.max[name]
     new = value + 1 if isinstance(value, int) else value * 1.01 + 1e-6
     assert low <= new <= high, f"{name}: default {value} is at the edge of [{low}, {high}]"

@@ -1,0 +1,207 @@
+#!/usr/bin/python3
+"""Every can on a real table (issue 13): can_search (find_cans' default) beside the issue 5 finder
+(search="clusters"), in one run, on generated cases and on the real mOSD scenes.
+
+* Generated: every case of example_pcl.scene_objects.CASES for held-out seeds (default 100-104;
+  development used 0-9), truth from the generator.
+* Real: ../shared/data/osd, truth from the human labels: each object's points (label // 10), the
+  table from the table's labels (1-9); what each object is comes from bench/osd_objects.json
+  (looked up in the colour images). A can's centre is the circle fitted to its labelled side points.
+
+Per case: cans found / missed / false (an upright can reported where there is none, also an
+upright report of a lying can), lying cans reported as lying, median centre error (mm, horizontal,
+against the truth's axis) and time per frame (median / p90 ms, real scenes; each scene searched
+`--repeats` times, the two finders alternately). Prints a markdown table and writes it into
+docs/can_search.md between <!-- bench:cans --> markers.
+"""
+import argparse
+import json
+import pathlib
+import re
+import statistics
+import sys
+import time
+
+import numpy as np
+
+HERE = pathlib.Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+from common import machine_line, table  # noqa: E402
+
+from example_pcl import auto_finder as af  # noqa: E402
+from example_pcl import geometry as g  # noqa: E402
+from example_pcl import scene as sc  # noqa: E402
+from example_pcl import scene_objects as so  # noqa: E402
+from example_pcl import transforms  # noqa: E402
+
+PROJECT = HERE.parent
+OSD = PROJECT / ".." / "shared" / "data" / "osd"
+OBJECTS = HERE / "osd_objects.json"
+DOC = PROJECT / "docs" / "can_search.md"
+FINDERS = {"can_search": af.AutoConfig(), "issue 5 finder": af.AutoConfig(search="clusters")}
+
+
+class Tally:
+    def __init__(self):
+        self.found = self.missed = self.false = self.lying = self.lying_total = 0
+        self.errors, self.times, self.support_ok, self.base_ok = [], [], [], []
+
+    def row(self, name, finder, timed):
+        err = f"{1e3 * statistics.median(self.errors):.2f}" if self.errors else "-"
+        t = (f"{1e3 * statistics.median(self.times):.1f} / {1e3 * np.percentile(self.times, 90):.1f}"
+             if timed and self.times else "-")
+        lying = f"{self.lying}/{self.lying_total}" if self.lying_total else "-"
+        return [name, finder, self.found, self.missed, self.false, lying, err, t]
+
+
+def score(tally, found_cans, true_cans, true_lying, to_plane, match):
+    """Matches found cans (sensor frame) with the truth (plane-frame dicts: center (x, y), radius,
+    support_height, base_seen; lying: center (x, y, z))."""
+    used = set()
+    for can in found_cans:
+        base = transforms.apply(to_plane, can.base_center)
+        if can.lying:
+            mid = transforms.apply(to_plane, can.base_center + 0.5 * can.height * can.axis)
+            hits = [k for k, t in enumerate(true_lying) if np.linalg.norm(mid[:2] - t["center"][:2]) < 0.05]
+            if hits:
+                tally.lying += 1
+            else:
+                tally.false += 1
+            continue
+        axis = transforms.apply(to_plane, can.base_center + can.axis) - base
+        # where the found axis meets the truth's base height
+        errors = []
+        for t in true_cans:
+            s = (t["support_height"] - base[2]) / axis[2] if abs(axis[2]) > 1e-6 else 0.0
+            p = base + s * axis
+            errors.append(np.linalg.norm(p[:2] - t["center"]))
+        k = int(np.argmin(errors)) if errors else -1
+        if k >= 0 and k not in used and errors[k] < max(match, 0.5 * true_cans[k]["radius"]):
+            used.add(k)
+            tally.found += 1
+            tally.errors.append(errors[k])
+        else:
+            tally.false += 1
+    tally.missed += len(true_cans) - len(used)
+    tally.lying_total += len(true_lying)
+
+
+def generated(seeds, tallies):
+    for case in so.CASES:
+        for seed in seeds:
+            scene = sc.generate_scene(so.case_spec(case, seed))
+            T = np.asarray(scene.truth["camera_from_table"])
+            to_plane = transforms.invert(T)
+            cans, lying = [], []
+            for t in scene.truth["objects"]:
+                p = transforms.apply(to_plane, t["base_center"])
+                if t["is_can"]:
+                    cans.append({"center": p[:2], "radius": t["radius"], "support_height": p[2]})
+                elif t["lying"]:
+                    a = transforms.apply(to_plane, np.asarray(t["base_center"]) + t["height"] * np.asarray(t["axis"]))
+                    lying.append({"center": 0.5 * (p + a)})
+            for name, config in FINDERS.items():
+                result = af.find_cans(scene.xyz, config=config)
+                score(tallies.setdefault((case, name), Tally()), result.cans, cans, lying, to_plane, 0.015)
+
+
+def real_truth(cloud, objects):
+    """(plane frame T_plane_from_sensor from the labelled table, true cans, true lying cans)."""
+    labels = cloud.points["label"].reshape(-1).astype(int)
+    xyz = cloud.xyz.reshape(-1, 3).astype(float)
+    ok = np.isfinite(xyz).all(axis=1)
+    table = xyz[ok & (labels >= 1) & (labels <= 9)]
+    centroid = table.mean(axis=0)
+    normal = np.linalg.eigh(np.cov((table - centroid).T))[1][:, 0]
+    plane = g.Plane.through(normal, centroid, np.asarray(cloud.origin, float))
+    to_plane = transforms.invert(g.plane_frame(plane.normal, centroid))
+    cans, lying = [], []
+    for obj in objects:
+        pts = transforms.apply(to_plane, xyz[ok & (labels // 10 == obj["label"])])
+        z = pts[:, 2]
+        if obj["kind"] == "can":
+            base = float(np.percentile(z, 1))
+            top = float(np.percentile(z, 99))
+            side = pts[(z > base + 0.02) & (z < top - 0.015)]
+            cx, cy, r = g.fit_circle_algebraic(side)
+            fit = g.fit_cylinder(side, (cx, cy), r, 0.006, max_iterations=50)
+            cans.append({"center": fit.center, "radius": fit.radius, "support_height": base if base > 0.02 else 0.0})
+        elif obj["kind"] == "lying_can":
+            lying.append({"center": pts.mean(axis=0)})
+    return to_plane, cans, lying
+
+
+def real(repeats, tallies):
+    from example_pcl.pcd import read_pcd
+
+    kinds = json.loads(OBJECTS.read_text())["scenes"]
+    for name, objects in sorted(kinds.items()):
+        path = OSD / f"{name}.pcd"
+        cloud = read_pcd(str(path))
+        to_plane, cans, lying = real_truth(cloud, objects)
+        case = "real: " + ("cans" if cans else "lying cans" if lying else "no can")
+        results = {}
+        for _ in range(repeats):
+            for finder, config in FINDERS.items():
+                start = time.perf_counter()
+                results[finder] = af.find_cans(cloud.xyz, viewpoint=cloud.origin, config=config)
+                elapsed = time.perf_counter() - start
+                for key in ((case, finder), ("real: all", finder)):
+                    tallies.setdefault(key, Tally()).times.append(elapsed)
+        for finder, result in results.items():
+            for key in ((case, finder), ("real: all", finder)):
+                score(tallies[key], result.cans, cans, lying, to_plane, 0.02)
+
+
+def write_doc(text):
+    start, end = "<!-- bench:cans -->", "<!-- /bench:cans -->"
+    doc = DOC.read_text()
+    pattern = re.compile(re.escape(start) + ".*?" + re.escape(end), re.S)
+    if not pattern.search(doc):
+        print(f"{DOC} has no {start} ... {end} markers; figures not written there")
+        return
+    tmp = DOC.with_name(DOC.name + ".tmp")
+    tmp.write_text(pattern.sub(lambda _: f"{start}\n{text}\n{end}", doc))
+    tmp.replace(DOC)
+
+
+def main(argv=None):
+    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p.add_argument("--seeds", type=int, nargs="+", default=[100, 101, 102, 103, 104],
+                   help="generator seeds (held out: development used 0-9)")
+    p.add_argument("--repeats", type=int, default=3, help="searches per real scene and finder")
+    p.add_argument("--no-write", action="store_true", help="print only, do not write docs/can_search.md")
+    args = p.parse_args(argv)
+    tallies = {}
+    generated(args.seeds, tallies)
+    if OSD.is_dir():
+        real(args.repeats, tallies)
+    else:
+        print(f"real scenes skipped: {OSD} is absent")
+    for finder in FINDERS:
+        total = Tally()
+        for (case, f), t in tallies.items():
+            if f == finder and not case.startswith("real"):
+                for a in ("found", "missed", "false", "lying", "lying_total"):
+                    setattr(total, a, getattr(total, a) + getattr(t, a))
+                total.errors += t.errors
+        tallies[("generated: all", finder)] = total
+    rows = [t.row(case, finder, case.startswith("real")) for (case, finder), t in sorted(
+        tallies.items(), key=lambda kv: (kv[0][0].startswith("real"), kv[0][0].endswith("all"), kv[0][0], kv[0][1]))]
+    header = ["case", "finder", "found", "missed", "false", "lying reported lying", "median centre error (mm)",
+              "time per frame median / p90 (ms)"]
+    ratio = ""
+    if ("real: all", "can_search") in tallies:
+        a, b = tallies[("real: all", "can_search")].times, tallies[("real: all", "issue 5 finder")].times
+        ratio = (f"\n\nTime ratio can_search / issue 5 finder on the real scenes: median "
+                 f"{statistics.median(a) / statistics.median(b):.2f}, "
+                 f"p90 {np.percentile(a, 90) / np.percentile(b, 90):.2f}.")
+    text = (f"`bench/bench_cans.py` (seeds {', '.join(map(str, args.seeds))}; {args.repeats} searches per real scene "
+            f"and finder), {machine_line()}\n\n" + table(header, rows) + ratio)
+    print(text)
+    if not args.no_write:
+        write_doc(text)
+
+
+if __name__ == "__main__":
+    main()

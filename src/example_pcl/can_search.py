@@ -1,0 +1,560 @@
+"""Cans inside objects (issue 13): upright cylinder hypotheses within each cluster on the table.
+
+Pure NumPy; knows nothing of ROS. auto_finder finds the table and clusters the points standing
+on it; this module looks inside each cluster for every can, instead of asking the cluster to be
+one. Everything here is in the *plane frame* (z up from the table, metres). The method, the rules
+and measured figures are in docs/can_search.md; in short, per cluster and round:
+
+1. **Hypotheses.** Circles through triplets of side points seen from above (RANSAC: each triplet
+   an anchor and two points within a can's diameter of it), radius within [min_radius,
+   max_radius]; the ones with most points within r_eps are verified, best first.
+2. **Grow along the axis.** The points are split into height bands (``band_height``); starting
+   from the band where the circle holds most points, the run of bands grows down and up while
+   each band still has points on the circle (at least ``band_fraction`` of the start band's) and
+   no more inside the disc than on it. The can spans that run; its top is the lid above it.
+3. **Fit and side criterion.** Levenberg-Marquardt (geometry.fit_cylinder) on the run's points
+   on the circle, then auto_finder's criterion: radius, inlier fraction, rms residual, shape error
+   (flat faces of boxes and prisms), visible arc, and at least min_can_height explained by the
+   one circle (a bowl's radius changes with height).
+4. **What it stands on.** Base within ``table_gap`` of the table: on the table, base seen.
+   Else a surface at the base's height around the can, beside or behind its front (a tin's lid,
+   a box's top): on that object (``support`` "object", or "can" when it is a can found
+   below), base at that height. Else an object in front reaching up to the lowest visible
+   point: base hidden, inferred on the table (``base_seen`` False). Else it floats: rejected.
+5. **Not a can.** Open top: points of the circle on its far half (away from the sensor) below
+   the rim, or inside the disc well below the rim - the inside of a hollow cylinder, so a cup,
+   mug, bowl or pot. Handle: points just outside the circle within the can's height, on a narrow
+   arc, that do not reach down to the support - a mug.
+6. The can's points are taken out of the cluster and the next round looks for another one.
+
+What no hypothesis claims stays a rejected object with the reason of its best hypothesis.
+Lying cans are not looked for yet: their side is no circle from above, so they are never reported
+as upright cans (CylinderHit and Can can carry a horizontal axis for when they are).
+"""
+from dataclasses import dataclass, field
+from typing import List, Optional
+
+import numpy as np
+
+from example_pcl import geometry as g
+from example_pcl.errors import PerceptionError
+
+
+@dataclass(frozen=True)
+class CylinderSearchConfig:
+    """Parameters of the search inside clusters (module docstring). Lengths in metres.
+
+    grid_step (px): the search sees every grid_step-th pixel in each direction; hypotheses:
+    triplets drawn per round; pool_points: at most this many points score them; verify: the best
+    so many distinct hypotheses are verified per round; fit_points: at most this many side points
+    (evenly subsampled) go into the Levenberg-Marquardt fit; max_rounds: per cluster.
+    band_height, band_fraction, min_band_points, max_band_gap (bands): the growth along the axis.
+    table_gap: a base this close above min_height stands on the table; support_reach: a
+    supporting surface is looked for this far around the can; occluder_reach: an object hiding
+    the base is looked for this far in front. open_depth: a hollow cylinder shows points this far
+    below its rim; max_open_fraction: of the circle's near-half points within open_window below the
+    rim, the far-half (or deep inside) ones an open top shows at least. handle_reach: a handle
+    sticks out at most this far; max_handle_arc (rad), min_handle_points. min_hidden_arc (rad): a
+    side seen over less than the criterion's min_arc but at least this is still a can when an
+    object in front hides the rest.
+    seed: of the RANSAC sampling (the result is the same for the same cloud).
+    """
+
+    grid_step: int = 2
+    hypotheses: int = 48
+    pool_points: int = 200
+    verify: int = 3
+    fit_points: int = 250
+    max_rounds: int = 6
+    band_height: float = 0.01
+    band_fraction: float = 0.2
+    min_band_points: int = 3
+    max_band_gap: int = 1
+    table_gap: float = 0.012
+    support_reach: float = 0.03
+    occluder_reach: float = 0.3
+    open_depth: float = 0.015
+    open_window: float = 0.05
+    max_open_fraction: float = 0.15
+    handle_reach: float = 0.035
+    max_handle_arc: float = 1.3
+    min_handle_points: int = 8
+    min_hidden_arc: float = 1.0
+    seed: int = 0
+
+    def validate(self):
+        """Raises PerceptionError naming the first value that makes no sense."""
+        for name in ("grid_step", "hypotheses", "pool_points", "verify", "max_rounds", "band_height",
+                     "min_band_points", "open_depth", "handle_reach"):
+            if not getattr(self, name) > 0:
+                raise PerceptionError(f"CylinderSearchConfig.{name} must be > 0, got {getattr(self, name)}")
+
+
+@dataclass(frozen=True, eq=False)
+class CylinderHit:
+    """A can found in a cluster, plane frame (m). Upright: axis (0, 0, 1) through (cx, cy), base
+    at base_z; lying: axis horizontal, base_center the centre of one end, height its length.
+    support: "table", "object" or "can"; base_seen: False when inferred behind an occluder;
+    indices: int64 into the searched grid (flattened) of its points."""
+
+    base_center: np.ndarray
+    axis: np.ndarray
+    radius: float
+    height: float
+    rms_error: float
+    arc_coverage: float
+    n_points: int
+    n_fit_points: int
+    shape_error: float
+    support: str
+    base_seen: bool
+    indices: np.ndarray = field(repr=False)
+
+    @property
+    def upright(self):
+        return bool(self.axis[2] > 0.9)
+
+
+@dataclass(frozen=True, eq=False)
+class Rejection:
+    """What in a cluster is not a can: centroid (plane frame, m), n_points, reason, radius of its
+    best circle (m, or None)."""
+
+    centroid: np.ndarray
+    n_points: int
+    reason: str
+    radius: Optional[float] = None
+
+
+# --- hypotheses -----------------------------------------------------------------------------------
+
+
+def circumcircles(a, b, c):
+    """Circles through triplets of 2-D points a, b, c (float64 (K, 2) each): (cx, cy, r) arrays;
+    collinear triplets get r = inf."""
+    bx, by = b[:, 0] - a[:, 0], b[:, 1] - a[:, 1]
+    qx, qy = c[:, 0] - a[:, 0], c[:, 1] - a[:, 1]
+    d = 2 * (bx * qy - by * qx)
+    b2, q2 = bx * bx + by * by, qx * qx + qy * qy
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ux = (qy * b2 - by * q2) / d
+        uy = (bx * q2 - qx * b2) / d
+    r = np.hypot(ux, uy)
+    r[~np.isfinite(r)] = np.inf
+    return ux + a[:, 0], uy + a[:, 1], r
+
+
+def circle_hypotheses(xy, n, rng, min_radius, max_radius):
+    """Up to n circles (cx, cy, r) through triplets of the points xy (float64 (M, 2), m): each an
+    anchor and two points within 2 max_radius of it (a can's diameter), radius within range."""
+    m = len(xy)
+    if m < 3:
+        return np.empty(0), np.empty(0), np.empty(0)
+    anchors = rng.integers(m, size=n)
+    d2 = ((xy[anchors, None, :] - xy[None, :, :]) ** 2).sum(axis=2)  # (n, m)
+    near = (d2 <= (2 * max_radius) ** 2) & (d2 >= (0.25 * min_radius) ** 2)
+    # Two random near points per anchor: the two largest random keys among the near ones.
+    keys = np.where(near, rng.random(d2.shape), -1.0)
+    two = np.argpartition(keys, m - 2, axis=1)[:, -2:]
+    ok = keys[np.arange(n)[:, None], two].min(axis=1) >= 0
+    if not ok.any():
+        return np.empty(0), np.empty(0), np.empty(0)
+    anchors, two = anchors[ok], two[ok]
+    cx, cy, r = circumcircles(xy[anchors], xy[two[:, 0]], xy[two[:, 1]])
+    keep = (r >= min_radius) & (r <= max_radius)
+    return cx[keep], cy[keep], r[keep]
+
+
+def best_circles(xy, cx, cy, r, eps, count):
+    """The `count` circles with most points of xy within eps, distinct (centres further apart than
+    half the smaller radius): list of (cx, cy, r, inliers)."""
+    if len(cx) == 0:
+        return []
+    dist = np.hypot(xy[None, :, 0] - cx[:, None], xy[None, :, 1] - cy[:, None])
+    score = (np.abs(dist - r[:, None]) <= eps).sum(axis=1)
+    out = []
+    for k in np.argsort(-score, kind="stable"):
+        if score[k] < 3:
+            break
+        # Distinct: another centre, or another radius about the same centre (a cup on a can).
+        if all(np.hypot(cx[k] - o[0], cy[k] - o[1]) > 0.5 * min(r[k], o[2]) or abs(r[k] - o[2]) > 2 * eps
+               for o in out):
+            out.append((float(cx[k]), float(cy[k]), float(r[k]), int(score[k])))
+            if len(out) == count:
+                break
+    return out
+
+
+# --- along the axis -------------------------------------------------------------------------------
+
+
+def band_run(band_on, band_inside, fraction, min_points, max_gap):
+    """The run of height bands a circle explains: (first, last) band, or None.
+
+    band_on, band_inside: points per band on the circle and inside its disc. The run starts at the
+    band with most points on the circle and grows while a band has at least max(min_points,
+    fraction x the start's) on it and no more inside than on it, over gaps of at most max_gap
+    bands."""
+    # The start is the fullest band with no more inside than on the circle (not the lid's band).
+    side_like = band_inside <= band_on
+    if not side_like.any():
+        return None
+    start = int(np.argmax(np.where(side_like, band_on, -1)))
+    need = max(min_points, fraction * band_on[start])
+    good = (band_on >= need) & side_like
+    if not good[start]:
+        return None
+    return _last_good(good, start, range(start - 1, -1, -1), max_gap), _last_good(good, start,
+                                                                                range(start + 1, len(good)), max_gap)
+
+
+def _last_good(good, start, order, max_gap):
+    """The last good band met walking `order` from start, over gaps of at most max_gap bands."""
+    last, gap = start, 0
+    for b in order:
+        if good[b]:
+            last, gap = b, 0
+        else:
+            gap += 1
+            if gap > max_gap:
+                break
+    return last
+
+
+# --- one cluster ----------------------------------------------------------------------------------
+
+
+@dataclass
+class _Context:
+    """What every verification in a search shares."""
+
+    config: object  # auto_finder.AutoConfig
+    search: CylinderSearchConfig
+    sensor: np.ndarray  # the sensor in the plane frame (m)
+    standing: np.ndarray  # float64 (N, 3): every point standing on the table (for occluders)
+    rng: np.random.Generator
+    found: list  # CylinderHits found so far (supports for stacked cans)
+
+
+def _sigma(ctx, center):
+    return ctx.config.noise_coefficient * float(np.sum((np.asarray(center) - ctx.sensor) ** 2))
+
+
+def verify(points, cx, cy, r, ctx):
+    """One circle hypothesis against a cluster's points (float64 (M, 3), plane frame):
+    (CylinderHit whose .indices is the mask of its points, None, None), or (None, reason, claim):
+    claim the mask of the points of a round object that is no can (a tin, cup, bowl), else None."""
+    c, s = ctx.config, ctx.search
+    z = points[:, 2]
+    center3 = np.array([cx, cy, float(np.median(z))])
+    sigma = _sigma(ctx, center3)
+    r_eps = max(c.r_eps, c.r_eps_sigmas * sigma)
+    # The triplet's circle is only as good as three noisy points: one linear (Kasa) fit to the
+    # points near it, on its near half, before the bands judge it.
+    dist = np.hypot(points[:, 0] - cx, points[:, 1] - cy)
+    close = (np.abs(dist - r) <= r_eps) & ((points[:, :2] - (cx, cy)) @ _toward_sensor(cx, cy, ctx) > -0.25 * r)
+    if close.sum() >= c.min_fit_points:
+        try:
+            kx, ky, kr = g.fit_circle_algebraic(points[close, :2])
+            if abs(kr - r) < 2 * r_eps and np.hypot(kx - cx, ky - cy) < 2 * r_eps:
+                cx, cy, r = kx, ky, kr
+                dist = np.hypot(points[:, 0] - cx, points[:, 1] - cy)
+        except PerceptionError:
+            pass
+    # An upright can shows the sensor its near half only: points on the circle's far half are the
+    # inside of something hollow (a cup's far wall), never a can's side.
+    facing = (points[:, :2] - (cx, cy)) @ _toward_sensor(cx, cy, ctx) > -0.25 * r
+    residual = dist - r
+    on = (np.abs(residual) <= r_eps) & facing
+    inside = dist < r - r_eps
+    bands = np.minimum((z / s.band_height).astype(np.int64), int(c.max_height / s.band_height))
+    nb = int(bands.max()) + 1
+    band_on = np.bincount(bands[on], minlength=nb)
+    band_inside = np.bincount(bands[inside], minlength=nb)
+    # A band is on the circle when its points near it are centred on it, not offset (a cup a few
+    # millimetres wider standing on the can).
+    near = (np.abs(residual) <= 2 * r_eps) & facing
+    with np.errstate(invalid="ignore", divide="ignore"):
+        offset = np.bincount(bands[near], weights=residual[near], minlength=nb) / np.bincount(bands[near], minlength=nb)
+    band_on = np.where(np.abs(offset) <= 0.5 * r_eps, band_on, 0)
+    run = band_run(band_on, band_inside, s.band_fraction, s.min_band_points, s.max_band_gap)
+    if run is None:
+        return None, "no band of points on the circle", None
+    lo, hi = run
+    # A surface the can stands on (a tin's lid, a box's top) adds a band crowded with points on
+    # the circle and beyond it: the side starts above it.
+    band_out = np.bincount(bands[(dist > r + r_eps) & (dist <= r + s.support_reach)], minlength=nb)
+    crowded = 1.3 * np.median(band_on[lo:hi + 1])
+    while lo < hi and band_on[lo] > crowded and band_out[lo] >= 0.3 * band_on[lo]:
+        lo += 1
+    z_lo, z_hi = lo * s.band_height, (hi + 1) * s.band_height
+    # The top: the lid just above the run (99th percentile of the disc's points up to 2 bands above);
+    # the side ends top_margin (and 3 sigma) below it, so the lid's rim is no side point.
+    disc = (dist <= r + r_eps) & (z >= z_lo) & (z < z_hi + 2 * s.band_height)
+    top = float(np.percentile(z[disc], 99))
+    in_run = (z >= z_lo) & (z < min(z_hi, top - c.top_margin - 3 * sigma))
+    side = on & in_run
+    if side.sum() < c.min_fit_points:
+        return None, f"{int(side.sum())} points on the circle (min {c.min_fit_points})", None
+    xy = points[side, :2]
+    # A linear (Kasa) circle first: cheap, and it already says when the radius is no can's.
+    try:
+        kx, ky, kr = g.fit_circle_algebraic(xy)
+    except PerceptionError as e:
+        return None, f"no circle fits the side ({e})", None
+
+    def claim(x=None, y=None, radius=None):
+        """The points of a round object that is no can: its disc over the run (so no other
+        hypothesis is tried on it)."""
+        x, y, radius = (cx, cy, r) if x is None else (x, y, radius)
+        d = np.hypot(points[:, 0] - x, points[:, 1] - y)
+        return (d <= radius + r_eps) & (z >= z_lo - s.band_height) & (z <= z_hi + s.band_height)
+
+    if not c.min_radius - r_eps <= kr <= c.max_radius + r_eps:
+        return None, (f"radius {1e3 * kr:.1f} mm outside [{1e3 * c.min_radius:.0f}, {1e3 * c.max_radius:.0f}] mm"
+                      ), claim(kx, ky, kr)
+    if len(xy) > s.fit_points:
+        xy = xy[:: int(np.ceil(len(xy) / s.fit_points))]
+    try:
+        fit = g.fit_cylinder(xy, (cx, cy), r, r_eps, max_iterations=c.fit_iterations, tol=c.fit_tolerance,
+                             min_inliers=c.min_fit_points, max_shift=r)
+    except PerceptionError as e:
+        return None, f"no circle fits the side ({str(e).split(';')[0]})", None
+    cx, cy, r = fit.cx, fit.cy, fit.radius
+    if not c.min_radius <= r <= c.max_radius:
+        return None, (f"radius {1e3 * r:.1f} mm outside [{1e3 * c.min_radius:.0f}, {1e3 * c.max_radius:.0f}] mm"
+                      ), claim()
+    dist = np.hypot(points[:, 0] - cx, points[:, 1] - cy)
+    facing = (points[:, :2] - (cx, cy)) @ _toward_sensor(cx, cy, ctx) > -0.25 * r
+    on = (np.abs(dist - r) <= r_eps) & facing
+    side = on & in_run
+    below_rim = dist <= r + r_eps
+    n_side = int(side.sum())
+    residual = dist[side] - r
+    rms = float(np.sqrt(np.mean(residual ** 2)))
+    max_rms = max(c.max_rms, c.max_rms_sigmas * sigma)
+    sxy = points[side, :2]
+    shape = g.shape_error(sxy, cx, cy, r, c.shape_bins)
+    arc = g.arc_coverage(sxy, cx, cy)
+    base = float(np.percentile(z[side], 1))
+    # Inlier fraction of the side below the lid: points inside the disc there are no can's.
+    fraction = n_side / max(int((below_rim & in_run).sum()), 1)
+    if fraction < c.min_inlier_fraction:
+        return None, (f"only {100 * fraction:.0f}% of the side within {1e3 * r_eps:.1f} mm of the circle "
+                      f"(min {100 * c.min_inlier_fraction:.0f}%)"), None
+    if rms > max_rms:
+        return None, f"rms residual {1e3 * rms:.2f} mm > {1e3 * max_rms:.2f} mm", None
+    if shape > c.max_shape_error:
+        return None, f"shape error {1e3 * shape:.2f} mm > {1e3 * c.max_shape_error:.2f} mm (not round)", None
+    if arc < c.min_arc and not (arc >= s.min_hidden_arc and _in_front(cx, cy, r, base, top, ctx)):
+        return None, f"side seen over {arc:.2f} rad < {c.min_arc:.2f} rad", None
+    # What it stands on.
+    support, base_seen, base_z = _support(points, cx, cy, r, base, r_eps, sigma, ctx)
+    if support is None:
+        return None, (f"its lowest side point is {100 * base:.1f} cm above the table with nothing under it "
+                      "(floats)"), None
+    height = top - base_z
+    if height < c.min_can_height or top - base < min(c.min_can_height, 0.6 * height):
+        return None, (f"one circle explains only {100 * (top - base):.1f} cm of it (min "
+                      f"{100 * c.min_can_height:.1f} cm; a bowl's radius changes with height)"), claim()
+    why = (_open_top(points, cx, cy, r, r_eps, base, top, ctx)
+           or _handle(points, cx, cy, dist, r, r_eps, base_z, top, ctx))
+    if why:
+        return None, why, claim()
+    mine = (dist <= r + r_eps) & (z >= base_z - 0.5 * s.band_height) & (z <= top + s.band_height)
+    hit = CylinderHit(base_center=np.array([cx, cy, base_z]), axis=np.array([0.0, 0.0, 1.0]), radius=r,
+                      height=height, rms_error=rms, arc_coverage=arc, n_points=int(mine.sum()), n_fit_points=n_side,
+                      shape_error=shape, support=support, base_seen=base_seen, indices=mine)
+    return hit, None, None
+
+
+def _toward_sensor(cx, cy, ctx):
+    """Unit horizontal vector from the axis toward the sensor (plane frame)."""
+    v = ctx.sensor[:2] - (cx, cy)
+    n = np.linalg.norm(v)
+    return v / n if n > 1e-9 else np.array([0.0, -1.0])
+
+
+def _support(points, cx, cy, r, base, r_eps, sigma, ctx):
+    """(support, base_seen, base height) or (None, False, base) when it floats (module docstring)."""
+    c, s = ctx.config, ctx.search
+    if base <= c.min_height + s.table_gap + 3 * sigma:
+        return "table", True, 0.0
+    front = _toward_sensor(cx, cy, ctx)
+    rel = points[:, :2] - (cx, cy)
+    dist = np.hypot(rel[:, 0], rel[:, 1])
+    ahead = rel @ front  # > 0 toward the sensor
+    z = points[:, 2]
+    # A surface at the base's height around the can, not only in front of it: it reaches under it.
+    level = ((z >= base - 0.025 - 3 * sigma) & (z <= base + 0.005) & (dist > r + r_eps)
+             & (dist <= r + s.support_reach))
+    beside = level & (ahead < 0.5 * r)
+    # Or something right under it, narrower than it (the can a wider cup stands on).
+    under = (dist <= r + r_eps) & (z >= base - 0.03) & (z <= base - 0.005)
+    if beside.sum() >= s.min_band_points or under.sum() >= s.min_band_points:
+        base_z = float(np.median(z[level])) if beside.sum() >= s.min_band_points else base
+        below = "object"
+        for other in ctx.found:
+            top = other.base_center[2] + other.height
+            if (other.upright and np.hypot(cx - other.base_center[0], cy - other.base_center[1]) < other.radius
+                    and abs(top - base_z) < 0.02):
+                below = "can"
+        return below, True, base_z
+    # Something in front, as high as the lowest point seen: the base is hidden behind it.
+    st = ctx.standing
+    srel = st[:, :2] - (cx, cy)
+    sahead = srel @ front
+    lateral = np.abs(srel[:, 0] * front[1] - srel[:, 1] * front[0])
+    occluder = (sahead > r) & (sahead < r + s.occluder_reach) & (lateral < r) & (st[:, 2] >= base - 0.02)
+    if occluder.sum() >= s.min_band_points:
+        return "table", False, 0.0
+    if base <= c.min_height + c.max_base_gap:
+        return "table", True, 0.0
+    return None, False, base
+
+
+def _in_front(cx, cy, r, z_low, z_high, ctx):
+    """Whether some object stands in front of the can (toward the sensor, within occluder_reach,
+    less than 2 r to the side) as high as z_low..z_high: it may hide part of the can's side."""
+    s = ctx.search
+    front = _toward_sensor(cx, cy, ctx)
+    rel = ctx.standing[:, :2] - (cx, cy)
+    ahead = rel @ front
+    lateral = np.abs(rel[:, 0] * front[1] - rel[:, 1] * front[0])
+    z = ctx.standing[:, 2]
+    return bool(((ahead > r) & (ahead < r + s.occluder_reach) & (lateral < 2 * r) & (z >= z_low)
+                 & (z <= z_high)).sum() >= s.min_band_points)
+
+
+def _open_top(points, cx, cy, r, r_eps, base, top, ctx):
+    """Why it is a hollow cylinder open at the top (a cup, mug, bowl or pot), or "".
+
+    Looked for among every point standing on the table near the axis, not only the cluster's: the
+    inside of a cup is a depth step away from its rim, often a cluster of its own."""
+    s = ctx.search
+    st = ctx.standing
+    near_axis = (np.abs(st[:, 0] - cx) < r + r_eps) & (np.abs(st[:, 1] - cy) < r + r_eps)
+    points = np.concatenate([points, st[near_axis]])
+    rel = points[:, :2] - (cx, cy)
+    dist = np.hypot(rel[:, 0], rel[:, 1])
+    z = points[:, 2]
+    ahead = rel @ _toward_sensor(cx, cy, ctx)
+    low = (z < top - s.open_depth) & (z > base)
+    on = np.abs(dist - r) <= r_eps
+    # Compared where both would show: the upper part (a cup's inside is seen only so deep).
+    upper = low & (z > top - s.open_window)
+    near = int((on & upper & (ahead > 0.3 * r)).sum())
+    far = int((on & upper & (ahead < -0.3 * r)).sum())
+    deep = int(((dist < 0.7 * r) & low).sum())
+    limit = max(s.min_band_points, s.max_open_fraction * near)
+    if far >= limit:
+        return (f"open top: {far} points on the far inner wall below the rim (a hollow cylinder: cup, mug, "
+                "bowl or pot)")
+    if deep >= limit:
+        return f"open top: {deep} points inside, below the rim (a cup, mug, bowl or pot)"
+    return ""
+
+
+def _handle(points, cx, cy, dist, r, r_eps, base, top, ctx):
+    """Why it has a handle (a mug), or "": points just outside the circle within its height, on an
+    arc narrower than max_handle_arc, none of them reaching down to the support or above the top
+    (a box or can touching it stands on the table or is taller)."""
+    s = ctx.search
+    z = points[:, 2]
+    out = (dist > r + 2 * r_eps) & (dist <= r + s.handle_reach)
+    mid = out & (z > base + 0.01) & (z < top - 0.005)
+    if mid.sum() < s.min_handle_points:
+        return ""
+    angle = np.arctan2(points[:, 1] - cy, points[:, 0] - cx)
+    a = np.sort(angle[mid])
+    gaps = np.append(np.diff(a), a[0] + 2 * np.pi - a[-1])
+    arc = float(2 * np.pi - gaps.max())
+    if arc > s.max_handle_arc:
+        return ""
+    start = a[(int(np.argmax(gaps)) + 1) % len(a)]
+    span = (angle - start) % (2 * np.pi) <= arc + 1e-9
+    beyond = (dist > r + s.handle_reach) & (dist <= r + 2 * s.handle_reach)
+    if (out & span & ((z <= base + 0.01) | (z >= top + 0.005))).any() or (beyond & span).sum() >= s.min_handle_points:
+        return ""  # it reaches the support, the top or further out: another object touching it
+    return (f"handle: {int(mid.sum())} points stick out of the side over {arc:.2f} rad without reaching the "
+            "support (a mug)")
+
+
+def search_cluster(points, ctx):
+    """Every can in one cluster: (list of CylinderHit with indices into `points`, list of Rejection).
+
+    points: float64 (M, 3), plane frame (m)."""
+    c, s = ctx.config, ctx.search
+    free = np.ones(len(points), bool)
+    hits, rejections, last = [], [], None
+    for _ in range(int(s.max_rounds)):
+        idx = np.flatnonzero(free)
+        if len(idx) < c.min_fit_points:
+            break
+        pool = idx if len(idx) <= s.pool_points else idx[ctx.rng.choice(len(idx), s.pool_points, replace=False)]
+        xy = points[pool, :2]
+        sigma = _sigma(ctx, points[pool].mean(axis=0))
+        r_eps = max(c.r_eps, c.r_eps_sigmas * sigma)
+        cx, cy, r = circle_hypotheses(xy, s.hypotheses, ctx.rng, c.min_radius, c.max_radius + r_eps)
+        candidates = best_circles(xy, cx, cy, r, r_eps, s.verify)
+        if not candidates:
+            last = last or ("no circle of a can's radius through its points", None)
+            break
+        # A circle through a lid or a box's top has its points at one height: no side, not verified.
+        z_pool = points[pool, 2]
+        candidates = [h for h in candidates
+                      if np.ptp(z_pool[np.abs(np.hypot(xy[:, 0] - h[0], xy[:, 1] - h[1]) - h[2]) <= r_eps])
+                      >= 0.5 * c.min_can_height]
+        progress = False
+        for cx0, cy0, r0, _ in candidates:
+            hit, reason, claim = verify(points[idx], cx0, cy0, r0, ctx)
+            if hit is not None:
+                mine = idx[hit.indices]
+                hits.append(_with_indices(hit, mine))
+                ctx.found.append(hits[-1])
+                free[mine] = False
+                progress = True
+                break
+            if claim is not None and claim.any():
+                # A round object that is no can (a tin, a cup): named, and not tried again.
+                gone = idx[claim]
+                rejections.append(Rejection(centroid=points[gone].mean(axis=0), n_points=len(gone), reason=reason,
+                                            radius=r0))
+                free[gone] = False
+                progress = True
+                break
+            if last is None:
+                last = (reason, r0)
+        if not progress:
+            break
+    rest = np.flatnonzero(free)
+    if len(rest) >= c.min_fit_points or not (hits or rejections):
+        reason, radius = last or ("nothing round left", None)
+        rejections.append(Rejection(centroid=points[rest].mean(axis=0) if len(rest) else points.mean(axis=0),
+                                    n_points=len(rest), reason=reason, radius=radius))
+    return hits, rejections
+
+
+def _with_indices(hit, indices):
+    return CylinderHit(**{**{f: getattr(hit, f) for f in hit.__dataclass_fields__}, "indices": indices})
+
+
+def search(clusters, standing, sensor_plane, config, search_config=None):
+    """Every can in the clusters: (list of (cluster number, CylinderHit)), list of (cluster number,
+    Rejection)), hits' indices into that cluster's points.
+
+    clusters: list of float64 (M, 3) plane-frame points (m), one array per cluster; standing:
+    float64 (N, 3), every point standing on the table (occluders are looked for among them);
+    sensor_plane: the sensor in the plane frame (m); config: auto_finder.AutoConfig (the band,
+    fit and criterion); search_config: CylinderSearchConfig (default config.cylinders)."""
+    s = search_config or config.cylinders
+    s.validate()
+    ctx = _Context(config=config, search=s, sensor=np.asarray(sensor_plane, dtype=float),
+                   standing=np.asarray(standing, dtype=float), rng=np.random.default_rng(s.seed), found=[])
+    hits, rejections = [], []
+    # Lowest clusters first is not needed: a stacked can's support is in its own cluster.
+    for k, points in enumerate(clusters):
+        h, rej = search_cluster(points, ctx)
+        hits += [(k, hit) for hit in h]
+        rejections += [(k, rj) for rj in rej]
+    return hits, rejections
