@@ -91,7 +91,7 @@ def test_can_tracker_cfg_defaults_are_the_dataclasses_defaults():
     assert (local, tracker, log) == (LocalFitConfig(), TrackerConfig(), [])
     assert sorted(defaults) == sorted(tracker_param_names(LocalFitConfig(), TrackerConfig()))
     for name, value in defaults.items():
-        new = next(c for c in ("organized", "euclidean") if c != value) if isinstance(value, str) else (
+        new = next(c for c in CHOICES[name] if c != value) if isinstance(value, str) else (
             value + 1 if isinstance(value, int) else value * 1.01 + 1e-6)
         if not isinstance(value, str) and not tracker_cfg.min[name] <= new <= tracker_cfg.max[name]:
             new = value - 1 if isinstance(value, int) else value * 0.99
