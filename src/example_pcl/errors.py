@@ -19,3 +19,22 @@ def warning_kind(error: Exception) -> str:
     sending the same bad message at 30 Hz cannot flood the log.
     """
     return re.sub(r"'[^']*'", "'…'", re.sub(r"\d+", "N", str(error)))
+
+
+class OncePerKind:
+    """Logs the first message of each kind (warning_kind) through `first`, later ones through
+    `again` (e.g. rospy.logerr and rospy.logdebug), and counts them all by kind."""
+
+    def __init__(self, first, again):
+        self._first, self._again = first, again
+        self.counts = {}
+
+    def __call__(self, what, error):
+        """Logs "what: error"; returns True when it was the first of its kind."""
+        kind = warning_kind(f"{what}: {error}")
+        self.counts[kind] = self.counts.get(kind, 0) + 1
+        if self.counts[kind] == 1:
+            self._first("%s: %s (further ones of this kind are logged at debug level)", what, error)
+            return True
+        self._again("%s: %s", what, error)
+        return False

@@ -500,3 +500,18 @@ def fit_circle_algebraic(xy):
         raise PerceptionError("the points are collinear, no circle through them; select more of the can")
     a, bb, c = solution[0] / scale, solution[1] / scale, solution[2]
     return float(a + mean[0]), float(bb + mean[1]), float(np.sqrt(c + a * a + bb * bb))
+
+
+def plane_extent(points, T_sensor_from_plane, band, step=8, quantile=0.01):
+    """(x_min, x_max, y_min, y_max) in the plane frame (m) of the points within band (m) of the
+    plane z = 0, on a subsample (every step-th pixel, see subsample) and between the quantile
+    and 1 - quantile of each coordinate (a few stray points do not stretch it); None when no
+    point is that close. points: float32 (N, 3) or (H, W, 3), sensor frame (m)."""
+    pts = subsample(as_points_float32(points), step).reshape(-1, 3).astype(float)
+    in_plane = transforms.apply(transforms.invert(T_sensor_from_plane), pts)
+    with np.errstate(invalid="ignore"):
+        near = in_plane[np.abs(in_plane[:, 2]) <= band]
+    if len(near) == 0:
+        return None
+    (x0, y0), (x1, y1) = np.quantile(near[:, :2], [quantile, 1.0 - quantile], axis=0)
+    return float(x0), float(x1), float(y0), float(y1)

@@ -4,6 +4,8 @@ PointCloud2 builders live in example_pcl.conversions (``xyz_to_cloud``, ``array_
 Transforms are 4x4 float64 ``T_frame_from_object`` (example_pcl.transforms); lengths in metres.
 Message classes import without a master, so all of this is testable without one.
 """
+import dataclasses
+
 from geometry_msgs.msg import Pose, PoseArray, PoseStamped, Vector3
 from shape_msgs.msg import SolidPrimitive
 from std_msgs.msg import Header
@@ -15,6 +17,8 @@ from example_pcl.msg import CanArray
 
 CAN_NS = "can"  # the namespace of can_marker's single marker
 CANS_NS = "can_markers"  # the namespace of can_markers' markers, one id per can
+LABELS_NS = "can_labels"  # can_tracker's text labels, marker id = track id as the cylinders'
+TABLE_NS = "table"  # can_tracker's table marker
 
 
 def header(frame_id, stamp=None):
@@ -120,3 +124,68 @@ def can_message(can, track_id=0, age=0, confidence=1.0, velocity=(0.0, 0.0, 0.0)
 def can_array(cans, frame_id, stamp=None):
     """example_pcl/CanArray of the cans (example_pcl.can.Can) of one search, ids 0, 1, ... in order."""
     return CanArray(header=header(frame_id, stamp), cans=[can_message(c, i) for i, c in enumerate(cans)])
+
+
+# --- tracked cans (can_tracker) -------------------------------------------------------------------
+
+
+def tracked_can(track):
+    """The example_pcl.can.Can a track (example_pcl.tracking.Track) stands for: its last detection
+    with the smoothed pose, radius and height."""
+    return dataclasses.replace(track.detection, T_sensor_from_can=track.pose, radius=float(track.radius),
+                               height=float(track.height))
+
+
+def track_array(tracks, frame_id, stamp=None):
+    """example_pcl/CanArray of tracks (example_pcl.tracking.Track, in frame_id), in the order given:
+    id = track id, the smoothed pose and size, the last fit's quality, age, confidence, velocity."""
+    return CanArray(header=header(frame_id, stamp),
+                    cans=[can_message(tracked_can(t), t.id, t.age, t.confidence, t.velocity) for t in tracks])
+
+
+def track_poses(tracks, frame_id, stamp=None):
+    """geometry_msgs/PoseArray of the tracks' smoothed poses, in the order given (as track_array)."""
+    return pose_array([t.pose for t in tracks], frame_id, stamp)
+
+
+def label_marker(text, position, frame_id, stamp=None, ns=LABELS_NS, marker_id=0, size=0.03):
+    """visualization_msgs/Marker: a TEXT_VIEW_FACING label `text` at position (m, frame_id), its
+    letters size (m) tall."""
+    marker = Marker(header=header(frame_id, stamp), ns=ns, id=marker_id, type=Marker.TEXT_VIEW_FACING,
+                    action=Marker.ADD, text=text)
+    marker.pose.position.x, marker.pose.position.y, marker.pose.position.z = (float(v) for v in position)
+    marker.pose.orientation.w = 1.0
+    marker.scale.z = size
+    marker.color.r = marker.color.g = marker.color.b = marker.color.a = 1.0
+    return marker
+
+
+def track_markers(tracks, ended_ids, frame_id, stamp=None):
+    """visualization_msgs/MarkerArray of tracks: per track a CYLINDER (namespace CANS_NS) and a label
+    "can 3, r 33 mm" above it (LABELS_NS), both with marker id = track id, greyed while the track
+    coasts unseen; then a DELETE of both for every id in ended_ids."""
+    markers = []
+    for t in tracks:
+        cylinder = can_marker(t.pose, t.radius, t.height, frame_id, stamp, ns=CANS_NS, marker_id=t.id)
+        if not t.seen:
+            cylinder.color.r = cylinder.color.g = cylinder.color.b = 0.6
+        top = t.base_center + (t.height + 0.03) * t.axis
+        markers += [cylinder, label_marker(f"can {t.id}, r {1e3 * t.radius:.0f} mm", top, frame_id, stamp,
+                                           marker_id=t.id)]
+    for marker_id in ended_ids:
+        markers += [delete_marker(frame_id, ns=CANS_NS, marker_id=marker_id),
+                    delete_marker(frame_id, ns=LABELS_NS, marker_id=marker_id)]
+    return MarkerArray(markers=markers)
+
+
+def table_marker(T_frame_from_plane, extent, frame_id, stamp=None, thickness=0.005):
+    """visualization_msgs/Marker: the table as a thin CUBE (thickness m) in the plane z = 0 of
+    T_frame_from_plane, over extent (x_min, x_max, y_min, y_max) of the plane frame (m)."""
+    x0, x1, y0, y1 = extent
+    T = transforms.compose(T_frame_from_plane, transforms.from_translation_quaternion_xyzw(
+        (0.5 * (x0 + x1), 0.5 * (y0 + y1), -0.5 * thickness), (0.0, 0.0, 0.0, 1.0)))
+    marker = Marker(header=header(frame_id, stamp), ns=TABLE_NS, id=0, type=Marker.CUBE, action=Marker.ADD,
+                    pose=pose(T))
+    marker.scale.x, marker.scale.y, marker.scale.z = max(x1 - x0, 1e-3), max(y1 - y0, 1e-3), thickness
+    marker.color.r, marker.color.g, marker.color.b, marker.color.a = 0.8, 0.6, 0.3, 0.5
+    return marker

@@ -66,3 +66,50 @@ def param_names(finder):
 
     operator = scalar(finder)
     return operator + [AUTO_PREFIX + n if n in operator else n for n in scalar(finder.auto)]
+
+
+LOCAL_PREFIX = "local_"
+
+
+def _scalar_names(config):
+    return [f.name for f in dataclasses.fields(config)
+            if not isinstance(getattr(config, f.name), (tuple, list)) and getattr(config, f.name) is not None
+            and not dataclasses.is_dataclass(getattr(config, f.name))]
+
+
+def tracker_from_values(local, tracker, values):
+    """can_tracker's LocalFitConfig (with its .auto AutoConfig) and TrackerConfig updated from
+    reconfigure `values` (cfg/CanTracker.cfg).
+
+    The search's fields take the names of cfg/can_search_params.py (``auto_`` + the name where
+    find_can's operator steps use it); the local refit's take theirs, or ``local_`` + the name
+    where the search uses it too (max_fit_points, fit_tolerance); the tracker's take theirs.
+    Returns (LocalFitConfig, TrackerConfig, changes: "name old -> new" strings for the log).
+    Raises PerceptionError (nothing changed) when a result would not validate.
+    """
+    auto_names = set(_scalar_names(local.auto))
+    auto, auto_changes = replace_fields(local.auto, {k: v for k, v in values.items()
+                                                     if not k.startswith(LOCAL_PREFIX)}, AUTO_PREFIX)
+    local_values = {k: v for k, v in values.items() if k.startswith(LOCAL_PREFIX) or k not in auto_names}
+    updated_local, local_changes = replace_fields(dataclasses.replace(local, auto=auto), local_values, LOCAL_PREFIX)
+    updated_tracker, tracker_changes = replace_fields(
+        tracker, {k: v for k, v in values.items() if k not in auto_names and not k.startswith(LOCAL_PREFIX)})
+    updated_local.validate()
+    updated_tracker.validate()
+    log = [f"{AUTO_PREFIX if AUTO_PREFIX + k in values else ''}{k} {old} -> {new}"
+           for k, (old, new) in auto_changes.items()]
+    log += [f"{LOCAL_PREFIX if k in auto_names else ''}{k} {old} -> {new}" for k, (old, new) in local_changes.items()]
+    log += [f"{k} {old} -> {new}" for k, (old, new) in tracker_changes.items()]
+    return updated_local, updated_tracker, log
+
+
+def tracker_param_names(local, tracker):
+    """Every name tracker_from_values takes: the search's (as cfg/can_search_params.py names
+    them: ``auto_`` where find_can's operator steps have the name), the local refit's (``local_``-prefixed
+    where the search has the name) and the tracker's."""
+    from example_pcl.can_finder import FinderConfig
+
+    auto = [n for n in param_names(FinderConfig()) if n not in _scalar_names(FinderConfig())]
+    auto_names = set(_scalar_names(local.auto))
+    return (auto + [LOCAL_PREFIX + n if n in auto_names else n for n in _scalar_names(local)]
+            + _scalar_names(tracker))

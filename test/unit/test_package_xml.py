@@ -19,6 +19,8 @@ TEST_TYPES = RUN_TYPES | {"test_depend"}
 # Imported modules that are not ROS packages, and their rosdep keys. A ROS package's key is its name.
 ROSDEP_KEYS = {
     "PIL": "python3-pil",
+    # A ROS package, but Debian ships only its Python module (python3-diagnostic-updater), which rospkg cannot find.
+    "diagnostic_updater": "diagnostic_updater",
     "hypothesis": "python3-hypothesis",
     "matplotlib": "python3-matplotlib",
     "numpy": "python3-numpy",
