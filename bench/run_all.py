@@ -26,6 +26,8 @@ def main():
     if (HERE / "bench_find_can.py").exists():
         run("bench_find_can.py")
     run("bench_auto.py")  # writes its own README section (auto)
+    run("bench_tracking.py")
+    run("bench_tracker_stream.py")  # writes docs/can_tracker_benchmark.md
 
 
 if __name__ == "__main__":

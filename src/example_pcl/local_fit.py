@@ -27,7 +27,7 @@ table or a can is lost or the scene changed. Every length is in metres.
 import math
 import time
 from dataclasses import dataclass, field
-from typing import List, Optional
+from typing import List
 
 import numpy as np
 from scipy import ndimage
@@ -278,7 +278,7 @@ class LocalFinder:
         self._since_search = 0
 
     def process(self, xyz):
-        """One organized frame (float32 (H, W, 3), sensor frame, m): a FrameFit. Raises
+        """One organized frame (float32 (H, W, 3), any strides, sensor frame, m): a FrameFit. Raises
         PerceptionError (and forgets everything) when even the full search finds no table."""
         t0 = time.perf_counter()
         pts = _organized(xyz)
@@ -337,7 +337,9 @@ class LocalFinder:
         return (-(-pts.shape[0] // s), -(-pts.shape[1] // s))
 
     def _search(self, pts):
-        result = af.find_cans(pts, self.viewpoint, self.config.auto)
+        # The refit reads a strided view (x, y, z inside XYZRGB points) as fast as a copy; the search,
+        # many passes over the whole cloud, is faster on a contiguous one: copied only here.
+        result = af.find_cans(np.ascontiguousarray(pts), self.viewpoint, self.config.auto)
         self._table, self._T, self._cans = result.table, result.T_sensor_from_plane, list(result.cans)
         standing, grid = standing_grid(pts, self._T, self.config, self.viewpoint)
         self._known = standing & ~in_can_regions(grid, transforms.invert(self._T), self._cans,
