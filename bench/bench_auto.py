@@ -41,7 +41,7 @@ sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 from common import PROJECT, machine_line, median_time, table, write_figures  # noqa: E402
 
 from example_pcl import _native, auto_finder, scene as sc  # noqa: E402
-from example_pcl import transforms  # noqa: E402
+from example_pcl import geometry as g, transforms  # noqa: E402
 
 MATCH_DISTANCE = 0.02  # m: a found can farther than this from every true can is a false can
 

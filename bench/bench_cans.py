@@ -17,7 +17,6 @@ docs/can_search.md between <!-- bench:cans --> markers.
 import argparse
 import json
 import pathlib
-import re
 import statistics
 import sys
 import time
@@ -26,7 +25,7 @@ import numpy as np
 
 HERE = pathlib.Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
-from common import machine_line, table  # noqa: E402
+from common import machine_line, table, write_section  # noqa: E402
 
 from example_pcl import auto_finder as af  # noqa: E402
 from example_pcl import geometry as g  # noqa: E402
@@ -153,18 +152,6 @@ def real(repeats, tallies):
                 score(tallies[key], result.cans, cans, lying, to_plane, 0.02)
 
 
-def write_doc(text):
-    start, end = "<!-- bench:cans -->", "<!-- /bench:cans -->"
-    doc = DOC.read_text()
-    pattern = re.compile(re.escape(start) + ".*?" + re.escape(end), re.S)
-    if not pattern.search(doc):
-        print(f"{DOC} has no {start} ... {end} markers; figures not written there")
-        return
-    tmp = DOC.with_name(DOC.name + ".tmp")
-    tmp.write_text(pattern.sub(lambda _: f"{start}\n{text}\n{end}", doc))
-    tmp.replace(DOC)
-
-
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--seeds", type=int, nargs="+", default=[100, 101, 102, 103, 104],
@@ -200,7 +187,7 @@ def main(argv=None):
             f"and finder), {machine_line()}\n\n" + table(header, rows) + ratio)
     print(text)
     if not args.no_write:
-        write_doc(text)
+        write_section(DOC, "cans", text)
 
 
 if __name__ == "__main__":

@@ -18,7 +18,7 @@ import tempfile
 import numpy as np
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
-from common import PROJECT, machine_line, median_time, ms, table, write_figures  # noqa: E402
+from common import machine_line, median_time, ms, table, write_figures  # noqa: E402
 
 from example_pcl import _native, conversions, pcd  # noqa: E402
 

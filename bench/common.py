@@ -1,8 +1,11 @@
-"""Helpers shared by the benchmarks: timing, the machine line, tables, writing figures into docs/benchmarks.md."""
+"""Helpers shared by the benchmarks: timing, the machine line, tables, writing figures into docs pages,
+process CPU time, a roscore of their own."""
+import contextlib
 import os
 import pathlib
 import platform
 import re
+import signal
 import socket
 import statistics
 import subprocess
@@ -59,13 +62,78 @@ def table(header, rows):
     return "\n".join(lines)
 
 
-def write_figures(name, text):
-    """Replaces the text between <!-- bench:NAME --> and <!-- /bench:NAME --> in docs/benchmarks.md with text."""
+def write_section(path, name, text, title=None):
+    """Replaces the text between <!-- bench:NAME --> and <!-- /bench:NAME --> in the markdown file
+    `path` with text (atomically). A missing file is created with `title` (a heading) and the
+    markers; a file without the markers is left alone."""
+    path = pathlib.Path(path)
     start, end = f"<!-- bench:{name} -->", f"<!-- /bench:{name} -->"
-    page = BENCHMARKS.read_text()
+    if not path.exists() and title:
+        path.write_text(f"{title}\n\n{start}\n{end}\n")
+    page = path.read_text() if path.exists() else ""
     pattern = re.compile(re.escape(start) + ".*?" + re.escape(end), re.S)
     if not pattern.search(page):
-        print(f"docs/benchmarks.md has no {start} ... {end} markers; figures not written there")
+        print(f"{path.name} has no {start} ... {end} markers; figures not written there")
         return
-    BENCHMARKS.write_text(pattern.sub(lambda _: f"{start}\n{text}\n{end}", page))
-    print(f"figures written to docs/benchmarks.md ({name})")
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(pattern.sub(lambda _: f"{start}\n{text}\n{end}", page))
+    os.replace(tmp, path)
+    print(f"figures written to {path.relative_to(PROJECT) if path.is_relative_to(PROJECT) else path} ({name})")
+
+
+def write_figures(name, text):
+    """Replaces the text between <!-- bench:NAME --> and <!-- /bench:NAME --> in docs/benchmarks.md with text."""
+    write_section(BENCHMARKS, name, text)
+
+
+def cpu_seconds(pid):
+    """User + system CPU time of a process (all its threads), seconds."""
+    with open(f"/proc/{pid}/stat") as f:
+        fields = f.read().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def machine_busy_seconds():
+    """CPU seconds all processes on the machine have used: every /proc/stat column but idle and iowait."""
+    with open("/proc/stat") as f:
+        values = [int(v) for v in f.readline().split()[1:]]
+    return (sum(values) - values[3] - values[4]) / os.sysconf("SC_CLK_TCK")
+
+
+def stop(*processes, timeout=20):
+    """SIGINT to each process still running (a node's clean Ctrl-C), SIGKILL after timeout (s)."""
+    for proc in processes:
+        if proc.poll() is None:
+            proc.send_signal(signal.SIGINT)
+            try:
+                proc.wait(timeout)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+
+
+@contextlib.contextmanager
+def own_roscore(tmp):
+    """A roscore of the benchmark's own on a free port (ROS_HOME under the folder tmp), so other work's
+    masters are left alone; its URI is put in os.environ. Yields the environment for child processes;
+    stops the roscore (its whole process group) at the end."""
+    port = free_port()
+    uri = dict(ROS_MASTER_URI=f"http://localhost:{port}", ROS_HOME=os.path.join(tmp, "ros_home"))
+    env = dict(os.environ, **uri)
+    os.environ.update(uri)
+    roscore = subprocess.Popen(["roscore", "-p", str(port)], env=env, stdout=subprocess.DEVNULL,
+                               stderr=subprocess.DEVNULL, start_new_session=True)
+    try:
+        import rosgraph
+
+        deadline = time.monotonic() + 30
+        while not rosgraph.is_master_online():
+            if time.monotonic() > deadline:
+                raise RuntimeError("roscore did not start")
+            time.sleep(0.2)
+        yield env
+    finally:
+        os.killpg(roscore.pid, signal.SIGINT)
+        try:
+            roscore.wait(20)
+        except subprocess.TimeoutExpired:
+            os.killpg(roscore.pid, signal.SIGKILL)

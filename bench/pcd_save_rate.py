@@ -27,24 +27,10 @@ import numpy as np
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
 sys.path.insert(0, HERE)
-from common import free_port  # noqa: E402
+from common import cpu_seconds, machine_busy_seconds, own_roscore, stop  # noqa: E402
 KINECT_FRAME = os.path.join(ROOT, "..", "shared", "data", "frame_20121214T142256.332395.pcd")
 SUMMARY = re.compile(r"pcd_save done: saved (\d+) of (\d+) clouds received .*?\(([\d.]+) Hz\), dropped (\d+) "
                      r"\(sequence gaps (\d+), queue discards (\d+)\)")
-
-
-def cpu_seconds(pid):
-    """User + system CPU time of a process, seconds."""
-    with open(f"/proc/{pid}/stat") as f:
-        fields = f.read().rsplit(")", 1)[1].split()
-    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
-
-
-def machine_busy_seconds():
-    """CPU seconds all processes on the machine have used: every /proc/stat column but idle and iowait."""
-    with open("/proc/stat") as f:
-        values = [int(v) for v in f.readline().split()[1:]]
-    return (sum(values) - values[3] - values[4]) / os.sysconf("SC_CLK_TCK")
 
 
 def make_input(path):
@@ -93,13 +79,7 @@ def run_format(fmt, source, seconds, rate, env, tmp):
         saver.send_signal(signal.SIGINT)
         output = saver.communicate(timeout=60)[0]
     finally:
-        for proc in (saver, publisher):
-            if proc.poll() is None:
-                proc.send_signal(signal.SIGINT)
-                try:
-                    proc.wait(20)
-                except subprocess.TimeoutExpired:
-                    proc.kill()
+        stop(saver, publisher)
     match = SUMMARY.search(output)
     if not match:
         raise RuntimeError(f"no summary from pcd_save:\n{output[-2000:]}")
@@ -131,28 +111,12 @@ def main():
     args = parser.parse_args()
 
     tmp = tempfile.mkdtemp(prefix="pcd_save_bench_")
-    port = free_port()
-    env = dict(os.environ, ROS_MASTER_URI=f"http://localhost:{port}", ROS_HOME=os.path.join(tmp, "ros_home"))
-    roscore = subprocess.Popen(["roscore", "-p", str(port)], env=env, stdout=subprocess.DEVNULL,
-                               stderr=subprocess.DEVNULL, start_new_session=True)
     try:
-        source = os.path.join(tmp, "kinect_xyzrgb.pcd")
-        what, nbytes = make_input(source)
-        import rosgraph
-
-        os.environ["ROS_MASTER_URI"] = env["ROS_MASTER_URI"]
-        deadline = time.monotonic() + 30
-        while not rosgraph.is_master_online():
-            if time.monotonic() > deadline:
-                raise RuntimeError("roscore did not start")
-            time.sleep(0.2)
-        rows = [run_format(fmt, source, args.seconds, args.rate, env, tmp) for fmt in args.formats]
+        with own_roscore(tmp) as env:
+            source = os.path.join(tmp, "kinect_xyzrgb.pcd")
+            what, nbytes = make_input(source)
+            rows = [run_format(fmt, source, args.seconds, args.rate, env, tmp) for fmt in args.formats]
     finally:
-        os.killpg(roscore.pid, signal.SIGINT)
-        try:
-            roscore.wait(20)
-        except subprocess.TimeoutExpired:
-            os.killpg(roscore.pid, signal.SIGKILL)
         shutil.rmtree(tmp, ignore_errors=True)
 
     print(f"pcd_save continuous mode, 640x480 XYZRGB ({nbytes / 1e6:.1f} MB per message, {what}) "

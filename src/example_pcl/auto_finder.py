@@ -480,7 +480,7 @@ def _parser():
                    help="objects are looked for up to this height above the table, m (default %(default)s)")
     p.add_argument("--up", type=float, nargs=3, metavar=("X", "Y", "Z"),
                    help="the up direction in the sensor frame; the table's normal must be within "
-                        f"--max-tilt of it (default: no prior, the plane with most on it)")
+                        "--max-tilt of it (default: no prior, the plane with most on it)")
     p.add_argument("--max-tilt", type=float, default=d.max_tilt, help="rad (default %(default)s)")
     p.add_argument("--clustering", choices=("auto", "organized", "euclidean"), default=d.clustering,
                    help="organized grid connected components or PCL's Euclidean clusters (default %(default)s)")

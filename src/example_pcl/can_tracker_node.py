@@ -18,7 +18,7 @@ import rospy
 
 from example_pcl import auto_finder as af
 from example_pcl import geometry as g
-from example_pcl import messages, transforms
+from example_pcl import messages
 from example_pcl.conversions import cloud_to_xyz, validate_cloud
 from example_pcl.errors import OncePerKind, PerceptionError
 from example_pcl.frame_stream import NewestFrame, StreamStats

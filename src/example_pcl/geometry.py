@@ -201,7 +201,9 @@ def plane_frame(normal, origin, sensor_x=(1.0, 0.0, 0.0)):
             break
     x /= norm
     T = np.eye(4)
-    T[:3, 0], T[:3, 1], T[:3, 2], T[:3, 3] = x, np.cross(z, x), z, origin
+    # z x x written out: np.cross costs tens of microseconds, and this runs every tracked frame.
+    T[:3, 0], T[:3, 2], T[:3, 3] = x, z, origin
+    T[:3, 1] = z[1] * x[2] - z[2] * x[1], z[2] * x[0] - z[0] * x[2], z[0] * x[1] - z[1] * x[0]
     return T
 
 
@@ -217,7 +219,7 @@ def plane_inliers(points, T_sensor_from_plane, z_eps):
     return _native.filter_z_band(in_plane, 0.0, float(z_eps)), in_plane
 
 
-def refine_plane(points, plane, z_eps, viewpoint=(0.0, 0.0, 0.0), iterations=3):
+def refine_plane(points, plane, z_eps, viewpoint=(0.0, 0.0, 0.0), iterations=3, final_inliers=True):
     """Mode 0's refinement: the table plane from a small or slightly tilted patch plane.
 
     Each iteration puts a plane frame on the current plane (origin: the current centroid
@@ -230,8 +232,9 @@ def refine_plane(points, plane, z_eps, viewpoint=(0.0, 0.0, 0.0), iterations=3):
     points: float32 (N, 3) or (H, W, 3) sensor-frame cloud; plane: the starting Plane;
     iterations: at most this many passes.
     Returns (Plane, T_sensor_from_plane, inlier indices, passes): the refined plane, the plane
-    frame on it, the int64 indices (flattened cloud) of the points within z_eps of it, and how
-    many passes ran (the last one the pass that found the plane no longer moving, if it stopped).
+    frame on it, the int64 indices (flattened cloud) of the points within z_eps of it (None with
+    final_inliers=False, which saves a pass over the cloud), and how many passes ran (the last
+    one the pass that found the plane no longer moving, if it stopped).
     Raises PerceptionError when fewer than 3 points lie in the band.
     """
     viewpoint = as_vector3(viewpoint, "viewpoint")
@@ -258,7 +261,7 @@ def refine_plane(points, plane, z_eps, viewpoint=(0.0, 0.0, 0.0), iterations=3):
         if (abs(plane.d - previous.d) < 1e-7 and plane.normal @ previous.normal > 1 - 1e-12):
             break
     T = frame_on(plane)
-    idx, _ = plane_inliers(pts, T, z_eps)
+    idx = plane_inliers(pts, T, z_eps)[0] if final_inliers else None
     return plane, T, idx, passes
 
 
@@ -352,11 +355,16 @@ def radial_error(xy, cx, cy, radius):
 def arc_coverage(xy, cx, cy):
     """Angular span (rad, 0..2 pi) of points around (cx, cy): 2 pi minus the widest empty gap."""
     xy = _xy(xy)
-    if len(xy) < 2:
+    return _angular_span(np.arctan2(xy[:, 1] - cy, xy[:, 0] - cx))
+
+
+def _angular_span(angle):
+    """2 pi minus the widest gap between angles (rad, any order): 0 for fewer than 2."""
+    if len(angle) < 2:
         return 0.0
-    angle = np.sort(np.arctan2(xy[:, 1] - cy, xy[:, 0] - cx))
-    gaps = np.append(np.diff(angle), 2 * np.pi - (angle[-1] - angle[0]))
-    return float(2 * np.pi - gaps.max())
+    angle = np.sort(angle)
+    widest = max(float(np.diff(angle).max()), 2 * np.pi - float(angle[-1] - angle[0]))
+    return 2 * np.pi - widest
 
 
 def _fit_circle(xy, center0, radius0, free_radius, r_eps, max_iterations, tol, min_inliers, max_shift):
@@ -365,13 +373,16 @@ def _fit_circle(xy, center0, radius0, free_radius, r_eps, max_iterations, tol, m
     The inlier set is re-evaluated at the start of every iteration; within an iteration the step
     is damped (Marquardt's diagonal scaling) until it lowers the inliers' sum of squares.
     Coordinates are taken relative to the start so far-away frames keep their precision.
+    Runs once per can per frame in the tracker, so each step works on x and y as flat arrays and
+    builds the 2x2 or 3x3 normal equations directly (NumPy's per-call overhead dominates at a
+    few hundred points).
     """
     if not r_eps > 0:
         raise PerceptionError(f"r_eps must be > 0 m, got {r_eps}")
     if not radius0 > 0:
         raise PerceptionError(f"the radius must be > 0 m, got {radius0}")
     xy = _xy(xy)
-    finite = np.flatnonzero(np.isfinite(xy).all(axis=1))
+    finite = np.flatnonzero(np.isfinite(xy[:, 0]) & np.isfinite(xy[:, 1]))
     center0 = np.asarray(center0, dtype=float).reshape(2)
     if not np.isfinite(center0).all():
         raise PerceptionError(f"the start centre must be finite, got {center0}")
@@ -379,35 +390,43 @@ def _fit_circle(xy, center0, radius0, free_radius, r_eps, max_iterations, tol, m
     if len(finite) < min_inliers:
         raise PerceptionError(f"a circle fit needs at least {min_inliers} finite points, got {len(finite)}; "
                               "select more of the can")
-    pts = xy[finite] - center0
+    x = xy[finite, 0] - center0[0]
+    y = xy[finite, 1] - center0[1]
     params = np.array([0.0, 0.0, radius0])
     n_free = 3 if free_radius else 2
     max_shift = 3 * radius0 if max_shift is None else max_shift
-
-    def residuals_jacobian(p, sub):
-        dist, unit = _radial(sub, p[0], p[1])
-        jac = np.column_stack([-unit, -np.ones(len(sub))])[:, :n_free]
-        return dist - p[2], jac
+    tiny = 1e-12 * np.eye(n_free)
 
     damping, converged, iteration = 1e-3, False, 0
     for iteration in range(1, int(max_iterations) + 1):
         damping = min(damping, 1e6)  # a new inlier set may allow progress a stuck one did not
-        residuals, _ = residuals_jacobian(params, pts)
-        inliers = np.abs(residuals) <= r_eps
-        if inliers.sum() < min_inliers:
+        dx, dy = x - params[0], y - params[1]
+        dist = np.hypot(dx, dy)
+        inliers = np.abs(dist - params[2]) <= r_eps
+        n_inliers = int(np.count_nonzero(inliers))
+        if n_inliers < min_inliers:
             raise PerceptionError(
-                f"only {int(inliers.sum())} point(s) lie within r_eps = {r_eps} m of the circle at "
+                f"only {n_inliers} point(s) lie within r_eps = {r_eps} m of the circle at "
                 f"({params[0] + center0[0]:.4f}, {params[1] + center0[1]:.4f}); start nearer the can or raise r_eps")
-        sub = pts[inliers]
-        res, jac = residuals_jacobian(params, sub)
+        sx, sy, dist = x[inliers], y[inliers], dist[inliers]
+        res = dist - params[2]
         cost = res @ res
-        A, g = jac.T @ jac, jac.T @ res
+        # Rows of the Jacobian (transposed): d res / d (cx, cy, r) = (-ux, -uy, -1), u the unit
+        # vector from the centre to the point (0 for a point at the centre).
+        # Kept with the opposite sign, (ux, uy, 1): the normal matrix is the same, the gradient flips.
+        jac = np.zeros((3, len(res)))
+        off_centre = dist > 0
+        np.divide(dx[inliers], dist, out=jac[0], where=off_centre)
+        np.divide(dy[inliers], dist, out=jac[1], where=off_centre)
+        jac[2] = 1.0
+        jac = jac[:n_free]
+        A, g = jac @ jac.T, -(jac @ res)
         step = np.zeros(n_free)
         while damping < 1e12:
-            trial_step = np.linalg.solve(A + damping * (np.diag(np.diag(A)) + 1e-12 * np.eye(n_free)), -g)
+            trial_step = np.linalg.solve(A + damping * (np.diag(np.diag(A)) + tiny), -g)
             trial = params.copy()
             trial[:n_free] += trial_step
-            trial_res, _ = residuals_jacobian(trial, sub)
+            trial_res = np.hypot(sx - trial[0], sy - trial[1]) - trial[2]
             if trial_res @ trial_res <= cost:
                 step, params, damping = trial_step, trial, max(damping / 10, 1e-12)
                 break
@@ -417,20 +436,23 @@ def _fit_circle(xy, center0, radius0, free_radius, r_eps, max_iterations, tol, m
                 and 0 < params[2] <= max(10 * radius0, radius0 + max_shift)):
             raise PerceptionError(f"the circle fit diverged (centre moved more than {max_shift} m or radius "
                                   "left its range); select a patch on the can's side and check the table plane")
-        if np.linalg.norm(step) < tol:
+        if np.sqrt(step @ step) < tol:
             converged = True
             break
 
-    residuals, _ = residuals_jacobian(params, pts)
+    dx, dy = x - params[0], y - params[1]
+    residuals = np.hypot(dx, dy) - params[2]
     inliers = np.abs(residuals) <= r_eps
-    if inliers.sum() < min_inliers:
-        raise PerceptionError(f"only {int(inliers.sum())} point(s) lie within r_eps = {r_eps} m of the fitted "
+    n_inliers = int(np.count_nonzero(inliers))
+    if n_inliers < min_inliers:
+        raise PerceptionError(f"only {n_inliers} point(s) lie within r_eps = {r_eps} m of the fitted "
                               "circle; raise r_eps or select a patch on the can")
     cx, cy = params[:2] + center0
+    kept = residuals[inliers]
     return CylinderFit(cx=float(cx), cy=float(cy), radius=float(params[2]),
-                       rms_error=float(np.sqrt(np.mean(residuals[inliers] ** 2))), iterations=iteration,
-                       n_inliers=int(inliers.sum()), converged=converged,
-                       arc_coverage=arc_coverage(pts[inliers], params[0], params[1]),
+                       rms_error=float(np.sqrt(kept @ kept / n_inliers)), iterations=iteration,
+                       n_inliers=n_inliers, converged=converged,
+                       arc_coverage=_angular_span(np.arctan2(dy[inliers], dx[inliers])),
                        inliers=finite[inliers].astype(np.int64))
 
 
@@ -510,5 +532,9 @@ def shape_error(xy, cx, cy, radius, bins):
     gaps = np.append(np.diff(a), a[0] + 2 * np.pi - a[-1])
     start = (int(np.argmax(gaps)) + 1) % len(a)
     order = np.roll(order, -start)
-    means = np.array([chunk.mean() for chunk in np.array_split(residual[order], bins)])
-    return float(np.sqrt(np.mean(means ** 2)))
+    # np.array_split's arcs (the first len % bins one point longer), summed in one call.
+    size, longer = divmod(len(order), bins)
+    counts = np.full(bins, size)
+    counts[:longer] += 1
+    means = np.add.reduceat(residual[order], np.cumsum(counts) - counts) / counts
+    return float(np.sqrt(means @ means / bins))

@@ -24,9 +24,10 @@ sensor frame, metres, NaN holes):
 (auto_finder.find_cans) on the first frame, every ``search_period`` frames, and whenever the
 table or a can is lost or the scene changed. Every length is in metres.
 """
+import math
 import time
 from dataclasses import dataclass, field
-from typing import List, Optional
+from typing import List
 
 import numpy as np
 from scipy import ndimage
@@ -110,8 +111,8 @@ def refit_table(xyz, plane, config=LocalFitConfig(), viewpoint=(0.0, 0.0, 0.0)):
     pts = _organized(xyz)
     s = int(config.table_step)
     new, T, _, _ = g.refine_plane(pts[::s, ::s], plane, config.table_band, viewpoint,
-                               iterations=config.table_iterations)
-    tilt = float(np.arccos(np.clip(new.normal @ plane.normal, -1.0, 1.0)))
+                                  iterations=config.table_iterations, final_inliers=False)
+    tilt = math.acos(min(max(float(new.normal @ plane.normal), -1.0), 1.0))
     shift = abs(float(new.signed_distance(plane.centroid)))
     if tilt > config.max_table_tilt or shift > config.max_table_shift:
         raise PerceptionError(f"the table moved {1e3 * shift:.1f} mm and tilted {tilt:.3f} rad since the last frame")
@@ -142,34 +143,45 @@ def refit_can(xyz, T_sensor_from_plane, can, config=LocalFitConfig(), viewpoint=
     Raises PerceptionError saying why when the can is not there any more (too few points, no
     circle, or the criterion fails).
     """
-    c, a = config, config.auto
-    pts = _organized(xyz)
-    r0, r1, c0, c1 = pixel_window(can.indices, pts.shape, c.roi_margin)
     T_plane_from_sensor = transforms.invert(T_sensor_from_plane)
-    window = _native.transform_cloud(pts[r0:r1, c0:c1], T_plane_from_sensor)
-    center = transforms.apply(T_plane_from_sensor, np.asarray(can.base_center, dtype=float))
+    sensor = transforms.apply(T_plane_from_sensor, _point(viewpoint))
+    return _refit_can(_organized(xyz), T_sensor_from_plane, T_plane_from_sensor, sensor, can, config)
+
+
+def _refit_can(pts, T_sensor_from_plane, T_plane_from_sensor, sensor_plane, can, config):
+    """refit_can on a checked cloud, with the plane frame's inverse and the sensor's position in
+    it computed once per frame. Runs once per can per frame, so it keeps to few NumPy calls:
+    the window is cropped before anything is transformed, and only the window's points in the
+    can's region are gathered."""
+    c, a = config, config.auto
+    r0, r1, c0, c1 = pixel_window(can.indices, pts.shape, c.roi_margin)
+    window = _native.transform_cloud(pts[r0:r1, c0:c1], T_plane_from_sensor).reshape(-1, 3)
+    center = T_plane_from_sensor[:3, :3] @ can.T_sensor_from_can[:3, 3] + T_plane_from_sensor[:3, 3]
     # A can standing on an object (can_search) keeps that base height: its side starts there.
     base = float(can.support_height)
     low = a.min_height if base <= 0 else base + a.fit_bottom
-    with np.errstate(invalid="ignore"):
-        dx, dy, z = window[..., 0] - center[0], window[..., 1] - center[1], window[..., 2]
-        region = (dx * dx + dy * dy <= (can.radius + c.region_margin) ** 2) & (z > low) & (z <= a.max_height)
-    rows, cols = np.nonzero(region)
-    if len(rows) < a.min_fit_points:
-        raise PerceptionError(f"{len(rows)} point(s) where the can was (min {a.min_fit_points})")
-    points = window[rows, cols].astype(float)
+    # NaN compares False: holes fall out of the region without a check of their own.
+    dx, dy, z = window[:, 0] - center[0], window[:, 1] - center[1], window[:, 2]
+    region = dx * dx + dy * dy <= (can.radius + c.region_margin) ** 2
+    region &= z > low
+    region &= z <= a.max_height
+    flat = np.flatnonzero(region)
+    if len(flat) < a.min_fit_points:
+        raise PerceptionError(f"{len(flat)} point(s) where the can was (min {a.min_fit_points})")
+    points = window[flat].astype(float)
     z = points[:, 2]
     top = int(0.99 * (len(z) - 1))
     height = float(np.partition(z, top)[top])  # the 99th percentile, as the full search takes it
-    sensor = transforms.apply(T_plane_from_sensor, _point(viewpoint))
-    sigma = a.noise_coefficient * float(np.sum((points.mean(axis=0) - sensor) ** 2))
-    side = points[(z >= max(base, 0.0) + a.fit_bottom + 3 * sigma) & (z <= height - a.top_margin - 3 * sigma)]
+    # The mean as a matrix-vector product: NumPy's mean over axis 0 of (N, 3) costs 4x more.
+    offset = np.ones(len(points)) @ points / len(points) - sensor_plane
+    sigma = a.noise_coefficient * float(offset @ offset)
+    side = points[(z >= max(base, 0.0) + a.fit_bottom + 3 * sigma) & (z <= height - a.top_margin - 3 * sigma), :2]
     if len(side) < a.min_fit_points:
         raise PerceptionError(f"{len(side)} side point(s) where the can was (min {a.min_fit_points})")
     if len(side) > c.max_fit_points:
         side = side[:: int(np.ceil(len(side) / c.max_fit_points))]
     r_eps = max(a.r_eps, a.r_eps_sigmas * sigma)
-    fit = g.fit_cylinder(side[:, :2], center[:2], can.radius, r_eps, max_iterations=a.fit_iterations,
+    fit = g.fit_cylinder(side, center[:2], can.radius, r_eps, max_iterations=a.fit_iterations,
                          tol=c.fit_tolerance, min_inliers=a.min_fit_points, max_shift=c.region_margin)
     max_rms = max(a.max_rms, a.max_rms_sigmas * sigma)
     if not a.min_radius <= fit.radius <= a.max_radius or abs(fit.radius - can.radius) > c.max_radius_change:
@@ -180,14 +192,16 @@ def refit_can(xyz, T_sensor_from_plane, can, config=LocalFitConfig(), viewpoint=
         raise PerceptionError(f"rms residual {1e3 * fit.rms_error:.2f} mm > {1e3 * max_rms:.2f} mm")
     if fit.arc_coverage < a.min_arc:
         raise PerceptionError(f"side seen over {fit.arc_coverage:.2f} rad < {a.min_arc:.2f} rad")
-    shape = af.shape_error(side[fit.inliers, :2], fit.cx, fit.cy, fit.radius, a.shape_bins)
+    shape = af.shape_error(side[fit.inliers], fit.cx, fit.cy, fit.radius, a.shape_bins)
     if shape > a.max_shape_error:
         raise PerceptionError(f"shape error {1e3 * shape:.2f} mm > {1e3 * a.max_shape_error:.2f} mm (not round)")
     T_can = g.can_pose(T_sensor_from_plane, fit.cx, fit.cy)
-    T_can = T_can @ transforms.from_translation_quaternion_xyzw((0.0, 0.0, base), (0.0, 0.0, 0.0, 1.0))
-    indices = (rows + r0).astype(np.int64) * pts.shape[1] + cols + c0
+    if base:
+        T_can = T_can @ transforms.from_translation_quaternion_xyzw((0.0, 0.0, base), (0.0, 0.0, 0.0, 1.0))
+    rows, cols = np.divmod(flat, c1 - c0)
+    indices = (rows + r0) * pts.shape[1] + (cols + c0)
     return Can(T_sensor_from_can=T_can, radius=fit.radius, height=height - base, rms_error=fit.rms_error,
-               arc_coverage=fit.arc_coverage, n_points=len(rows), n_fit_points=fit.n_inliers,
+               arc_coverage=fit.arc_coverage, n_points=len(flat), n_fit_points=fit.n_inliers,
                center_plane=fit.center, shape_error=shape, indices=indices, support=can.support,
                base_seen=can.base_seen, support_height=base)
 
@@ -200,11 +214,12 @@ def standing_grid(xyz, T_sensor_from_plane, config=LocalFitConfig(), viewpoint=(
     (ceil(H / step), ceil(W / step)), and those points in the plane frame (float32, same grid)."""
     pts = _organized(xyz)
     s, a = int(config.change_step), config.auto
-    grid = _native.transform_cloud(pts[::s, ::s], transforms.invert(T_sensor_from_plane))
-    v = pts[::s, ::s].astype(float) - _point(viewpoint)
-    sigma = a.noise_coefficient * np.einsum("ijk,ijk->ij", v, v)
-    with np.errstate(invalid="ignore"):
-        standing = (grid[..., 2] > a.min_height + 3.5 * sigma) & (grid[..., 2] < a.max_height)
+    sample = pts[::s, ::s]
+    grid = _native.transform_cloud(sample, transforms.invert(T_sensor_from_plane))
+    v = sample - _point(viewpoint).astype(np.float32)
+    sigma = a.noise_coefficient * np.einsum("ijk,ijk->ij", v, v)  # float32: a noise level needs no more
+    # NaN compares False: holes never stand.
+    standing = (grid[..., 2] > a.min_height + 3.5 * sigma) & (grid[..., 2] < a.max_height)
     return standing, grid
 
 
@@ -269,7 +284,7 @@ class LocalFinder:
         self._since_search = 0
 
     def process(self, xyz):
-        """One organized frame (float32 (H, W, 3), sensor frame, m): a FrameFit. Raises
+        """One organized frame (float32 (H, W, 3), any strides, sensor frame, m): a FrameFit. Raises
         PerceptionError (and forgets everything) when even the full search finds no table."""
         t0 = time.perf_counter()
         pts = _organized(xyz)
@@ -304,20 +319,22 @@ class LocalFinder:
         finally:
             timings["table"] = time.perf_counter() - t
         t = time.perf_counter()
+        T_plane_from_sensor = transforms.invert(T)
+        sensor = transforms.apply(T_plane_from_sensor, self.viewpoint)
         cans = []
         for k, can in enumerate(self._cans):
             if can.lying:  # refit_can fits upright cans; a lying one is kept until the next search
                 cans.append(can)
                 continue
             try:
-                cans.append(refit_can(pts, T, can, c, self.viewpoint))
+                cans.append(_refit_can(pts, T, T_plane_from_sensor, sensor, can, c))
             except PerceptionError as e:
                 timings["cans"] = time.perf_counter() - t
                 return f"can {k} lost: {e}"
         timings["cans"] = time.perf_counter() - t
         t = time.perf_counter()
         standing, grid = standing_grid(pts, T, c, self.viewpoint)
-        n_new = new_standing_points(standing, grid, transforms.invert(T), cans, self._known, c)
+        n_new = new_standing_points(standing, grid, T_plane_from_sensor, cans, self._known, c)
         timings["change"] = time.perf_counter() - t
         if n_new >= c.min_new_points:
             return f"scene changed: {n_new} new point(s) stand on the table"
@@ -329,7 +346,9 @@ class LocalFinder:
         return (-(-pts.shape[0] // s), -(-pts.shape[1] // s))
 
     def _search(self, pts):
-        result = af.find_cans(pts, self.viewpoint, self.config.auto)
+        # The refit reads a strided view (x, y, z inside XYZRGB points) as fast as a copy; the search,
+        # many passes over the whole cloud, is faster on a contiguous one: copied only here.
+        result = af.find_cans(np.ascontiguousarray(pts), self.viewpoint, self.config.auto)
         self._table, self._T, self._cans = result.table, result.T_sensor_from_plane, list(result.cans)
         standing, grid = standing_grid(pts, self._T, self.config, self.viewpoint)
         self._known = standing & ~in_can_regions(grid, transforms.invert(self._T), self._cans,

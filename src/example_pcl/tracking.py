@@ -32,7 +32,7 @@ target frame), with the frame's stamp (s), and keeps one :class:`Track` per can:
 """
 import dataclasses
 from dataclasses import dataclass, field
-from typing import List, Optional
+from typing import List
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment

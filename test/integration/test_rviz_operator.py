@@ -103,8 +103,7 @@ class Operator:
 
     def wait_changed(self, before, timeout=60):
         """The view once rviz has drawn something new (at least 1000 pixels differ from `before`)."""
-        image = self.wait_drawn(lambda im: (np.abs(im.astype(np.int16) - before).max(axis=2) > 60).sum() > 1000,
-                                timeout)
+        self.wait_drawn(lambda im: (np.abs(im.astype(np.int16) - before).max(axis=2) > 60).sum() > 1000, timeout)
         time.sleep(1.0)  # the rest of the step's topics (marker, pose) arrive within a frame or two
         return self.image()
 
