@@ -14,11 +14,11 @@ import unittest
 import numpy as np
 import rospy
 import rostest
-from find_can_helpers import PKG, pixel_rect, table_rect
+from find_can_helpers import PKG, pixel_rect, pose_error, table_rect
 
 from example_pcl import scene as sc
 from example_pcl.conversions import array_to_cloud, make_points
-from example_pcl.demo import FindCanClient, pose_error
+from example_pcl.find_can_client import FindCanClient
 from example_pcl.select_patch import select_points
 
 FRAME = "live_camera"
