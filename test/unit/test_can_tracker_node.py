@@ -1,6 +1,8 @@
 """Unit tests of example_pcl.can_tracker_node without a master: the node class on stub publishers,
 fed generated sequences (scene_sequence) and bad input; its config from params."""
 import dataclasses
+import io
+from concurrent.futures import Future
 
 import numpy as np
 import pytest
@@ -50,9 +52,10 @@ class StubLog:
         return [line for lv, line in self.lines if lv == level]
 
 
-def make_node(config=ctn.CanTrackerConfig(), lookup=None, now=lambda: 0.0):
+def make_node(config=ctn.CanTrackerConfig(), lookup=None, now=lambda: 0.0, search_executor=None):
     publishers = {topic: StubPublisher() for topic in ctn.OUTPUT_TOPICS}
-    return ctn.CanTrackerNode(config, publishers, lookup=lookup, log=StubLog(), now=now)
+    return ctn.CanTrackerNode(config, publishers, lookup=lookup, log=StubLog(), now=now,
+                              search_executor=search_executor)
 
 
 def cloud(xyz, stamp, frame_id="camera"):
@@ -117,6 +120,77 @@ def test_poses_in_the_target_frame(frames):
     truth = [transforms.apply(T, c["base_center"]) for c in frames[2].truth["cans"]]
     for t in update.tracks:
         assert min(np.linalg.norm(t.base_center - p) for p in truth) < 0.003
+
+
+def any_msg(msg, kind="sensor_msgs/PointCloud2"):
+    """msg as the node's subscriber gets it: rospy.AnyMsg holding the serialized bytes."""
+    buffer = io.BytesIO()
+    msg.serialize(buffer)
+    raw = rospy.AnyMsg().deserialize(buffer.getvalue())
+    raw._connection_header = {"type": kind}
+    return raw
+
+
+def test_raw_messages_give_what_deserialized_ones_give(frames):
+    """Clouds as rospy.AnyMsg bytes (the subscriber's) give the same tracks and outputs as PointCloud2s."""
+    a, b = make_node(), make_node()
+    for f in frames[:3]:
+        msg = cloud(f.xyz, 100.0 + f.stamp)
+        ua, ub = a.process(msg), b.process(any_msg(msg))
+        assert [(t.id, t.base_center.tolist(), t.radius) for t in ua.tracks] == \
+            [(t.id, t.base_center.tolist(), t.radius) for t in ub.tracks]
+    assert a.publishers[ctn.CANS_TOPIC].messages[-1] == b.publishers[ctn.CANS_TOPIC].messages[-1]
+
+
+def test_a_raw_message_of_another_type_is_dropped_once(frames):
+    """Something else than a PointCloud2 on the cloud topic: dropped, one error naming its type."""
+    node = make_node()
+    wrong = any_msg(cloud(frames[0].xyz, 100.0), kind="sensor_msgs/Image")
+    assert node.process(wrong) is None and node.process(wrong) is None
+    assert len(node.log.at("error")) == 1 and "sensor_msgs/Image" in node.log.at("error")[0]
+    assert node.process(any_msg(cloud(frames[0].xyz, 100.0))) is not None
+
+
+def test_diagnostics_report_each_stage(frames):
+    """/diagnostics gets p50 / p90 of every stage of the frames' work."""
+    node = make_node()
+    stream(node, frames[:3])
+    values = dict(node.diagnose()[2])
+    for stage in ("deserialise", "convert", "table", "cans", "change", "search", "fit", "tracker", "messages"):
+        assert any(key.startswith(f"stage {stage} p50") for key in values), stage
+    assert values["stage fit p50 / p90 (ms, frames)"].endswith("(3)")
+
+
+class ManualExecutor:
+    """An executor whose submitted calls run only when the test says (run)."""
+
+    def __init__(self):
+        self.calls = []
+
+    def submit(self, function, *args):
+        future = Future()
+        self.calls.append((future, function, args))
+        return future
+
+    def run(self):
+        for future, function, args in self.calls:
+            future.set_result(function(*args))
+        self.calls = []
+
+
+def test_the_search_runs_beside_the_frames(frames):
+    """A new can: its frame is published from the refit and hands the search to the executor; the
+    frame after the search finished tracks the new can, every output in stamp order."""
+    executor = ManualExecutor()
+    node = make_node(search_executor=executor)
+    before = stream(node, frames[:7])
+    assert len(executor.calls) == 1 and node.last_reason.startswith("scene changed")
+    assert set(ids_by_truth(before[-1], frames[6])) == {0, 1}
+    executor.run()
+    after = stream(node, frames[7:], t0=100.0)[-1]
+    assert set(ids_by_truth(after, frames[-1])) == {0, 1, 2}
+    stamps = [m.header.stamp for m in node.publishers[ctn.CANS_TOPIC].messages]
+    assert stamps == sorted(stamps) and len(stamps) == len(frames)
 
 
 @pytest.mark.parametrize("name,make,match", [
