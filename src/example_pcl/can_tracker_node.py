@@ -130,15 +130,18 @@ class CanTrackerNode:
 
     def on_cloud(self, msg):
         """The subscriber's callback: counts the cloud and hands it to the worker (newest wins)."""
+        now = self.now()
         with self._stats_lock:
-            self.stats.arrived(self.now())
-        self.slot.put(msg)
+            self.stats.arrived(now)
+        self.slot.put((msg, now))
 
-    def process(self, msg):
+    def process(self, msg, received=None):
         """One cloud: validated, refitted, tracked, published. Bad input is logged (once per kind)
         and dropped; returns the TrackerUpdate, or None when the frame was dropped. The seconds
         of each stage go to the diagnostics (deserialise, convert, the fit's stages, tracker,
-        messages)."""
+        messages; with received, the time (now()) the callback got it: delivery, from the
+        cloud's stamp, and queue, until this work began)."""
+        start = self.now()
         t0 = time.perf_counter()
         stages = {}
         with self.lock:
@@ -148,6 +151,8 @@ class CanTrackerNode:
                 self.stats.refused()
             else:
                 now = self.now()
+                if received is not None:
+                    stages["delivery"], stages["queue"] = received - stamp, start - received
                 self.stats.done(now, now - stamp, time.perf_counter() - t0, stages)
         return update
 
@@ -237,10 +242,14 @@ class CanTrackerNode:
     # --- outputs ---
 
     def _publish(self, update, frame, stamp, xyz, T_sensor_from_plane, T_out_from_sensor):
+        """Each output that someone subscribes to (none is latched: a message nobody gets is not built)."""
         p = self.publishers
-        p[CANS_TOPIC].publish(messages.track_array(update.tracks, frame, stamp))
-        p[POSES_TOPIC].publish(messages.track_poses(update.tracks, frame, stamp))
-        p[MARKERS_TOPIC].publish(messages.track_markers(update.tracks, update.ended, frame, stamp))
+        if p[CANS_TOPIC].get_num_connections() > 0:
+            p[CANS_TOPIC].publish(messages.track_array(update.tracks, frame, stamp))
+        if p[POSES_TOPIC].get_num_connections() > 0:
+            p[POSES_TOPIC].publish(messages.track_poses(update.tracks, frame, stamp))
+        if p[MARKERS_TOPIC].get_num_connections() > 0:
+            p[MARKERS_TOPIC].publish(messages.track_markers(update.tracks, update.ended, frame, stamp))
         table = p[TABLE_TOPIC]
         extent = None
         if T_sensor_from_plane is not None and table.get_num_connections() > 0:
@@ -341,11 +350,11 @@ class CanTrackerNode:
 
     def _work(self):
         while True:
-            msg = self.slot.take()
-            if msg is None:
+            item = self.slot.take()
+            if item is None:
                 return
             try:
-                self.process(msg)
+                self.process(*item)
             except Exception:  # noqa: BLE001 - a bug on one frame must not stop the tracker
                 self.log.error("can_tracker: internal error, frame dropped:\n%s", traceback.format_exc())
 

@@ -303,12 +303,28 @@ def test_an_unorganized_cloud_is_searched_each_frame(frames):
     assert len(updates[-1].tracks) == 2 and [t.id for t in updates[-1].tracks] == [t.id for t in updates[0].tracks]
 
 
-def test_no_table_marker_work_without_its_subscriber(frames):
-    """Nobody on table_marker: the table's extent is not computed and nothing is published there."""
+@pytest.mark.parametrize("topic", ctn.OUTPUT_TOPICS)
+def test_no_work_for_an_output_nobody_subscribes(frames, topic):
+    """Nobody on one output: nothing is built or published there (for table_marker: not even the
+    table's extent); the other outputs go on."""
     node = make_node()
-    node.publishers[ctn.TABLE_TOPIC].connections = 0
+    node.publishers[topic].connections = 0
     stream(node, frames[:2])
-    assert node.publishers[ctn.TABLE_TOPIC].messages == []
+    assert node.publishers[topic].messages == []
+    assert all(len(node.publishers[t].messages) == 2 for t in ctn.OUTPUT_TOPICS if t != topic)
+
+
+def test_the_callback_hands_the_newest_cloud_to_the_work_with_its_arrival(frames):
+    """on_cloud counts the cloud and queues it with its arrival time; the work reports how long it
+    travelled (delivery, from its stamp) and waited (queue)."""
+    clock = iter([100.05, 100.08, 100.09, 100.1, 100.1])
+    node = make_node(now=lambda: next(clock))
+    node.on_cloud(cloud(frames[0].xyz, 100.0))
+    msg, received = node.slot.take(timeout=0)
+    assert received == 100.05 and node.stats.received == 1
+    node.process(msg, received)
+    stages = node.stats.summary(100.1)["stages"]
+    assert stages["delivery"][0] == pytest.approx(0.05) and stages["queue"][0] == pytest.approx(0.03)
 
 
 def test_reconfigure_changes_the_tracker_and_restarts_the_finders(frames):
