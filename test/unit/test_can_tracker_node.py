@@ -2,8 +2,6 @@
 fed generated sequences (scene_sequence) and bad input; its config from params."""
 import dataclasses
 import io
-from concurrent.futures import Future
-
 import numpy as np
 import pytest
 
@@ -161,27 +159,10 @@ def test_diagnostics_report_each_stage(frames):
     assert values["stage fit p50 / p90 (ms, frames)"].endswith("(3)")
 
 
-class ManualExecutor:
-    """An executor whose submitted calls run only when the test says (run)."""
-
-    def __init__(self):
-        self.calls = []
-
-    def submit(self, function, *args):
-        future = Future()
-        self.calls.append((future, function, args))
-        return future
-
-    def run(self):
-        for future, function, args in self.calls:
-            future.set_result(function(*args))
-        self.calls = []
-
-
-def test_the_search_runs_beside_the_frames(frames):
+def test_the_search_runs_beside_the_frames(frames, manual_executor):
     """A new can: its frame is published from the refit and hands the search to the executor; the
     frame after the search finished tracks the new can, every output in stamp order."""
-    executor = ManualExecutor()
+    executor = manual_executor
     node = make_node(search_executor=executor)
     before = stream(node, frames[:7])
     assert len(executor.calls) == 1 and node.last_reason.startswith("scene changed")

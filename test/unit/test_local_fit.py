@@ -3,8 +3,6 @@ scene-change check, and LocalFinder's choice between refit and full search.
 
 Needs the compiled extension. Frames come from the default scene_sequence (rendered once, cached).
 """
-from concurrent.futures import Future
-
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
@@ -128,36 +126,16 @@ def test_local_finder_reads_a_strided_view_as_a_copy(frames):
             assert np.array_equal(x.indices, y.indices)
 
 
-class ManualExecutor:
-    """An executor whose submitted calls run only when the test says (run)."""
-
-    def __init__(self):
-        self.calls = []
-
-    def submit(self, function, *args):
-        future = Future()
-        self.calls.append((future, function, args))
-        return future
-
-    def run(self):
-        for future, function, args in self.calls:
-            try:
-                future.set_result(function(*args))
-            except Exception as e:  # noqa: BLE001 - as an executor hands it over
-                future.set_exception(e)
-        self.calls = []
-
-
 def added_can():
     spec = ss.SequenceSpec()
     return next(c for c in spec.cans if c.first > 0)
 
 
-def test_background_search_leaves_the_frame_and_seeds_a_later_refit(frames):
+def test_background_search_leaves_the_frame_and_seeds_a_later_refit(frames, manual_executor):
     """A can that appears: the frame keeps the refit and hands the search (one, however many frames
     want it) to the executor; the first frame after it finished refits the new can from its result."""
     k = added_can().first
-    executor = ManualExecutor()
+    executor = manual_executor
     finder = lf.BackgroundSearchFinder(executor=executor)
     first = finder.process(frames[k - 2].xyz)
     assert first.searched and first.reason == "first frame" and executor.calls == []
@@ -176,10 +154,10 @@ def test_background_search_leaves_the_frame_and_seeds_a_later_refit(frames):
         assert np.linalg.norm(nearest(seeded.cans, can["base_center"]).base_center - can["base_center"]) < 0.001
 
 
-def test_background_search_keeps_the_cans_it_did_not_lose(frames):
+def test_background_search_keeps_the_cans_it_did_not_lose(frames, manual_executor):
     """A can removed: its refit fails, the others are kept on that frame, the search goes to the executor."""
     removed = next(c for c in ss.SequenceSpec().cans if c.last is not None)
-    executor = ManualExecutor()
+    executor = manual_executor
     finder = lf.BackgroundSearchFinder(executor=executor)
     finder.process(frames[removed.last].xyz)
     fit = finder.process(frames[removed.last + 1].xyz)
@@ -202,9 +180,9 @@ def test_adopt_keeps_the_fresher_refit_of_a_can(frames):
     assert [id(c) for c in finder._cans] == [id(nearest(refitted.cans, c.base_center)) for c in old.cans]
 
 
-def test_a_search_begun_before_a_reset_is_dropped(frames):
+def test_a_search_begun_before_a_reset_is_dropped(frames, manual_executor):
     """After a reset the next frame searches on itself; the older search's result is never taken."""
-    executor = ManualExecutor()
+    executor = manual_executor
     finder = lf.BackgroundSearchFinder(lf.LocalFitConfig(search_period=2), executor=executor)
     finder.process(frames[0].xyz)
     finder.process(frames[1].xyz)
@@ -215,9 +193,9 @@ def test_a_search_begun_before_a_reset_is_dropped(frames):
     assert fit.searched and fit.reason == "first frame" and not fit.adopted and not finder.searching
 
 
-def test_a_background_search_without_a_table_makes_the_next_frame_search(frames):
+def test_a_background_search_without_a_table_makes_the_next_frame_search(frames, manual_executor):
     """A search that found no table resets the finder, as a search on the frame would."""
-    executor = ManualExecutor()
+    executor = manual_executor
     finder = lf.BackgroundSearchFinder(lf.LocalFitConfig(search_period=2), executor=executor)
     for f in frames[:3]:
         finder.process(f.xyz)
@@ -238,9 +216,9 @@ def test_without_an_executor_the_search_runs_at_once_and_is_taken_next_frame(fra
     assert nxt.adopted and not nxt.reason
 
 
-def test_search_period_one_searches_every_frame_on_the_frame(frames):
+def test_search_period_one_searches_every_frame_on_the_frame(frames, manual_executor):
     """search_period 1 means every frame's cans come from the full search: nothing is handed over."""
-    executor = ManualExecutor()
+    executor = manual_executor
     finder = lf.BackgroundSearchFinder(lf.LocalFitConfig(search_period=1), executor=executor)
     fits = [finder.process(f.xyz) for f in frames[:3]]
     assert all(f.searched for f in fits) and executor.calls == []
