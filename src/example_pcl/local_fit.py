@@ -442,11 +442,10 @@ class BackgroundSearchFinder:
     each search at once (deterministic, for tests and replays). process(xyz) refits every frame
     (LocalFinder.process with search=False); a frame that wants the full search hands itself (a
     copy unless its memory never changes) to the executor unless a search is already under way;
-    the first frame after that
-    search finished adopts its result (LocalFinder.adopt) and refits from it. A search begun
-    before a reset or a search of the finder's own is dropped; one that found no table resets
-    the finder (the next frame searches at once). With search_period 1 (every frame) or no
-    table known, the search runs on the frame itself, as LocalFinder's does.
+    the first frame after that search finished adopts its result (LocalFinder.adopt) and refits
+    from it. A search begun before a reset or a search of the finder's own is dropped; one that
+    found no table resets the finder (the next frame searches at once). With search_period 1
+    (every frame) or no table known, the search runs on the frame itself, as LocalFinder's does.
     """
 
     def __init__(self, config=LocalFitConfig(), viewpoint=(0.0, 0.0, 0.0), executor=None):
