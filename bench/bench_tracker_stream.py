@@ -15,16 +15,18 @@ end-to-end latency (this process's receipt time of ``cans`` minus the cloud's st
 sending, converting, fitting, tracking, publishing) median, p90, p99; the node's CPU time per
 received frame (/proc, all its threads: deserialising included) and its own compute per frame;
 the static can's pose jitter (per-axis std, mm, in the table frame through the ground truth) and
-the pose error against the truth. Then the same frames replayed in this process give the compute
-per frame by stage (median ms). Prints a markdown table and writes it into
-docs/can_tracker.md (its Benchmark section). A benchmark, not a test: nothing fails.
+the pose error against the truth; the node's compute by stage (p50 / p90 ms, from its
+/diagnostics). Then the same frames replayed at the same rate through CanTrackerNode.process in
+this process (serialised clouds read as rospy.AnyMsg, the search in a worker thread as in the
+node), without ROS transport: its time per frame and its stages. Prints markdown tables and
+writes them into docs/can_tracker.md (its Benchmark section). A benchmark, not a test: nothing fails.
 """
 import argparse
+import concurrent.futures
 import io
 import json
 import os
 import shutil
-import statistics
 import subprocess
 import sys
 import tempfile
@@ -40,6 +42,13 @@ CLOUD_TOPIC = "/bench/points"
 FRAME_ID = "camera_rgb_optical_frame"
 MODES = (("full search every frame", 1), ("tracking", 30))
 DOC = PROJECT / "docs" / "can_tracker.md"
+STAGE_KEY = "stage "  # the node's diagnostics: "stage NAME p50 / p90 (ms, frames)": "P50 / P90 (N)"
+# The node's stages (CanTrackerNode.process), in the order of the work: delivery (the cloud's stamp to the
+# node's callback: serialising, sending, receiving) and queue (the callback to the work) are waits, the rest
+# compute; "background search" runs in the search worker beside the frames, counted on the frame that
+# adopts its result.
+STAGES = ("delivery", "queue", "deserialise", "convert", "table", "cans", "change", "copy", "submit", "search", "fit", "tracker",
+          "messages", "background search")
 
 
 def ping_pong(n):
@@ -194,6 +203,7 @@ def stream_figures(raw, frames):
                 skipped=int(d.get("skipped", 0)), outputs=len(raw["cans"]), latency=pct,
                 node_latency=[d.get(f"latency p{q} (ms)", "n/a") for q in (50, 90, 99)],
                 node_compute=d.get("compute mean (ms/frame)", "n/a"),
+                node_compute_p90=d.get("compute p90 (ms/frame)", "n/a"), stages=stage_cells(d),
                 node_cpu_ms=1e3 * raw["node_cpu"] / max(int(d.get("processed", 0)), 1),
                 node_cpu_percent=100 * raw["node_cpu"] / raw["span"],
                 publisher_cpu_percent=100 * raw["publisher_cpu"] / raw["span"],
@@ -205,63 +215,79 @@ def stream_figures(raw, frames):
                 error_p50_mm=1e3 * float(np.median(errors)) if errors else float("nan"))
 
 
-# --- stages, replayed in this process ---------------------------------------------------------------
+def stage_cells(diagnostics):
+    """{stage: "P50 / P90 (N)"} from the node's diagnostics values."""
+    return {key[len(STAGE_KEY):].split(" p50")[0]: value for key, value in diagnostics.items()
+            if key.startswith(STAGE_KEY)}
 
 
-def stage_times(search_period, frames, messages, n_frames):
-    """Median ms per frame of each stage of can_tracker's work (as CanTrackerNode._process does it)
-    on n_frames of the forth-and-back sequence: deserialise, convert, the LocalFinder stages
-    (table, cans, change, search), tracker, messages (built and serialised)."""
-    from sensor_msgs.msg import PointCloud2
+# --- the node's work replayed in this process -------------------------------------------------------
 
+
+class _Stub:
+    """A publisher with `connections` subscribers; publish serialises, as rospy does before sending."""
+
+    def __init__(self, connections):
+        self.connections = connections
+
+    def publish(self, msg):
+        msg.serialize(io.BytesIO())
+
+    def get_num_connections(self):
+        return self.connections
+
+
+class _QuietLog:
+    def __getattr__(self, level):
+        return lambda *args: None
+
+
+def replay(search_period, messages, n_frames, rate):
+    """The forth-and-back sequence through CanTrackerNode.process at `rate` Hz in this process (each
+    cloud serialised just before its turn, read as rospy.AnyMsg as the node's subscriber gets it; the
+    search on a one-thread executor as in the node): {"frame": ms per frame (p50, p90, p99), "stages": the
+    node's stage figures as its diagnostics print them}."""
+    import rospy
+
+    from example_pcl import can_tracker_node as ctn
     from example_pcl import local_fit as lf
-    from example_pcl import messages as m
-    from example_pcl import tracking as tr
-    from example_pcl.conversions import cloud_to_xyz, validate_cloud
 
-    data = []
-    for msg in messages:
+    config = ctn.CanTrackerConfig(stats_window=1e6, local=lf.LocalFitConfig(search_period=search_period))
+    executor = concurrent.futures.ThreadPoolExecutor(max_workers=1, thread_name_prefix="replay_search")
+    stubs = {topic: _Stub(1 if topic == ctn.CANS_TOPIC else 0) for topic in ctn.OUTPUT_TOPICS}  # as in the run
+    node = ctn.CanTrackerNode(config, stubs, log=_QuietLog(),
+                              now=time.monotonic, search_executor=executor)
+    order = ping_pong(len(messages))
+    times, start = [], time.monotonic()
+    for k in range(n_frames):
+        # Serialised just before, untimed: its bytes are fresh in memory, as a cloud rospy just received.
+        msg = messages[order[k % len(order)]]
+        msg.header.stamp = rospy.Time.from_sec(100.0 + k / rate)
         buffer = io.BytesIO()
         msg.serialize(buffer)
-        data.append(buffer.getvalue())
-    order = ping_pong(len(frames))
-    finder = lf.LocalFinder(lf.LocalFitConfig(search_period=search_period))
-    tracker = tr.CanTracker()
-    times = {}
-
-    def add(stage, seconds):
-        times.setdefault(stage, []).append(1e3 * seconds)
-
-    for k in range(n_frames):
-        index = order[k % len(order)]
+        raw = rospy.AnyMsg().deserialize(buffer.getvalue())
+        delay = start + k / rate - time.monotonic()
+        if delay > 0:
+            time.sleep(delay)
         t = time.perf_counter()
-        msg = PointCloud2().deserialize(data[index])
-        add("deserialise", time.perf_counter() - t)
-        t = time.perf_counter()
-        validate_cloud(msg)
-        xyz = np.ascontiguousarray(cloud_to_xyz(msg), dtype=np.float32)
-        add("convert", time.perf_counter() - t)
-        fit = finder.process(xyz)
-        for stage, seconds in fit.timings.items():
-            add(stage if stage != "total" else "local fit + search", seconds)
-        t = time.perf_counter()
-        update = tracker.update(fit.cans, k / 30.0)  # time runs on while the frames go forth and back
-        add("tracker", time.perf_counter() - t)
-        t = time.perf_counter()
-        stamp = msg.header.stamp
-        for out in (m.track_array(update.tracks, FRAME_ID, stamp), m.track_poses(update.tracks, FRAME_ID, stamp),
-                    m.track_markers(update.tracks, update.ended, FRAME_ID, stamp)):
-            out.serialize(io.BytesIO())
-        add("messages", time.perf_counter() - t)
-        add("frame", 1e-3 * sum(times[s][-1] for s in ("deserialise", "convert", "local fit + search", "tracker",
-                                                         "messages")))
-    return times
+        node.process(raw)
+        times.append(1e3 * (time.perf_counter() - t))
+    executor.shutdown(wait=True)
+    return {"frame": np.percentile(times, [50, 90, 99]), "stages": stage_cells(dict(node.diagnose()[2]))}
 
 
 # --- report -----------------------------------------------------------------------------------------
 
 
-def report(args, results, stages, load):
+def _p50(cell):
+    """The p50 of a stage cell "P50 / P90 (N)" (NaN for none)."""
+    try:
+        return float(cell.split("/")[0])
+    except (AttributeError, ValueError):
+        return float("nan")
+
+
+def report(args, results, replayed, load):
     names = list(results)
     f = {name: results[name] for name in names}
     rows = [
@@ -274,7 +300,8 @@ def report(args, results, stages, load):
         ["node's own latency p50 / p90 / p99 (ms)", *(" / ".join(f[n]["node_latency"]) for n in names)],
         ["node CPU per processed frame (ms, all threads, receiving included)",
          *(f"{f[n]['node_cpu_ms']:.1f}" for n in names)],
-        ["node's own compute per frame, mean wall time (ms)", *(f[n]["node_compute"] for n in names)],
+        ["node's own compute per frame, mean / p90 wall time (ms)",
+         *(f"{f[n]['node_compute']} / {f[n]['node_compute_p90']}" for n in names)],
         ["CPU % (100 = one core): node / publisher / benchmark / everything else on the machine",
          *(f"{f[n]['node_cpu_percent']:.0f} / {f[n]['publisher_cpu_percent']:.0f} / {f[n]['bench_cpu_percent']:.0f}"
            f" / {f[n]['other_cpu_percent']:.0f}" for n in names)],
@@ -282,17 +309,15 @@ def report(args, results, stages, load):
         ["track ids the static can had", *(f[n]["static_ids"] for n in names)],
         ["pose error median / max (mm)", *(f"{f[n]['error_p50_mm']:.2f} / {f[n]['error_max_mm']:.2f}" for n in names)],
     ]
-    stage_names = ["deserialise", "convert", "table", "cans", "change", "search", "local fit + search", "tracker",
-                   "messages", "frame"]
     stage_rows = []
-    for stage in stage_names:
-        cells = []
-        for n in stages:
-            v = stages[n].get(stage)
-            cells.append(f"{statistics.median(v):.2f} ({len(v)})" if v else "-")
-        stage_rows.append([stage, *cells])
-    full, tracking = (stages[n]["local fit + search"] for n, _ in MODES)
-    ratio = statistics.median(full) / statistics.median(tracking)
+    for stage in STAGES:
+        cells = [f[n]["stages"].get(stage, "-") for n in names] + [replayed[n]["stages"].get(stage, "-") for n in names]
+        if any(c != "-" for c in cells):
+            stage_rows.append([stage, *cells])
+    stage_rows.append(["replayed: whole frame, p50 / p90 / p99 (ms)", *("" for n in names),
+                       *(" / ".join(f"{v:.2f}" for v in replayed[n]["frame"]) for n in names)])
+    fit_p50 = [_p50(f[n]["stages"].get("fit")) for n in names]
+    ratio = f"{fit_p50[0] / fit_p50[1]:.1f}x" if all(np.isfinite(fit_p50)) and fit_p50[1] > 0 else "n/a"
     text = "\n".join([
         f"`bench/bench_tracker_stream.py --seconds {args.seconds:g} --rate {args.rate:g}`: the generated moving "
         f"sequence (scene_sequence, 640x480 XYZRGB, 4.9 MB per cloud, forth and back) published at "
@@ -305,13 +330,14 @@ def report(args, results, stages, load):
         "",
         table(["stream", *names], rows),
         "",
-        "Compute per frame by stage, the same frames replayed in one process (median ms, (frames)); `search` "
-        "only on the frames that ran it; `frame` = deserialise + convert + local fit + search + tracker + "
-        "messages:",
+        "Compute by stage, p50 / p90 ms (frames that ran it), in the node on the stream (its /diagnostics) and "
+        f"replayed through CanTrackerNode.process at {args.rate:g} Hz in one process (no ROS transport). `fit` is "
+        "the whole LocalFinder step (table + cans + change + search or hand-over); `search` ran on the frame, "
+        "`background search` in the search worker beside the frames (counted on the frame that took its result):",
         "",
-        table(["stage", *stages], stage_rows),
+        table(["stage", *(f"{n} (stream)" for n in names), *(f"{n} (replay)" for n in names)], stage_rows),
         "",
-        f"Fitting per frame, full search on every frame / tracking: {ratio:.1f}x.",
+        f"Fitting per frame (`fit` p50 on the stream), full search on every frame / tracking: {ratio}.",
         "",
         "Targets (issue 12): >= 29 of every 30 frames processed, latency median <= 25 ms and p99 <= 50 ms, "
         "<= 5 ms of compute per tracked frame, static pose jitter <= 0.5 mm (std).",
@@ -323,7 +349,7 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--seconds", type=float, default=30.0, help="stream length per mode (default %(default)s)")
     parser.add_argument("--rate", type=float, default=30.0, help="Hz (default %(default)s)")
-    parser.add_argument("--replay-frames", type=int, default=174, help="frames replayed per mode for the stages")
+    parser.add_argument("--replay-frames", type=int, default=348, help="frames replayed per mode (default %(default)s)")
     parser.add_argument("--no-write", action="store_true", help="print only; leave docs/ alone")
     parser.add_argument("--publish", metavar="LOG", help=argparse.SUPPRESS)  # the publisher process's role
     args = parser.parse_args()
@@ -331,8 +357,8 @@ def main():
         return publish(args.seconds, args.rate, args.publish)
 
     frames, messages = stream_messages()  # renders (and caches) the sequence before any timing
-    # The stages first: once this process's roscore is gone, rospy's threads here slowed NumPy 3-5x.
-    stages = {name: stage_times(period, frames, messages, args.replay_frames) for name, period in MODES}
+    # The replay first: once this process's roscore is gone, rospy's threads here slowed NumPy 3-5x.
+    replayed = {name: replay(period, messages, args.replay_frames, args.rate) for name, period in MODES}
     tmp = tempfile.mkdtemp(prefix="tracker_stream_bench_")
     load = [os.getloadavg()[0]]
     try:
@@ -345,7 +371,7 @@ def main():
             rospy.signal_shutdown("benchmark done")
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
-    text = report(args, results, stages, load)
+    text = report(args, results, replayed, load)
     print(text)
     if not args.no_write:
         write_section(DOC, "tracker_stream", text)

@@ -2,10 +2,12 @@
 
 ``rosrun example_pcl can_tracker`` (or ``roslaunch example_pcl can_tracker.launch cloud:=...``)
 subscribes ``kinect/depth/points`` and, on the newest cloud each time, refits the known table and
-cans (example_pcl.local_fit.LocalFinder, the full search of mode 4 when needed), tracks the cans
-(example_pcl.tracking.CanTracker) and publishes, stamped with the cloud's stamp, ``cans``,
-``can_poses``, ``can_markers`` and ``table_marker``. Topics, params and set-up: docs/can_tracker.md.
+cans (example_pcl.local_fit.BackgroundSearchFinder: the full search of mode 4 when needed, in a
+worker thread of its own once a table is known), tracks the cans (example_pcl.tracking.CanTracker)
+and publishes, stamped with the cloud's stamp, ``cans``, ``can_poses``, ``can_markers`` and
+``table_marker``. Topics, params and set-up: docs/can_tracker.md.
 """
+import concurrent.futures
 import dataclasses
 import sys
 import threading
@@ -19,10 +21,10 @@ import rospy
 from example_pcl import auto_finder as af
 from example_pcl import geometry as g
 from example_pcl import messages
-from example_pcl.conversions import cloud_to_xyz, validate_cloud
+from example_pcl.conversions import cloud_from_bytes, frozen_data, validate_cloud, xyz_view
 from example_pcl.errors import OncePerKind, PerceptionError
 from example_pcl.frame_stream import NewestFrame, StreamStats
-from example_pcl.local_fit import LocalFinder, LocalFitConfig
+from example_pcl.local_fit import BackgroundSearchFinder, LocalFitConfig
 from example_pcl.reconfigure import tracker_from_values, tracker_param_names
 from example_pcl.tracking import CanTracker, TrackerConfig
 
@@ -34,6 +36,7 @@ TABLE_TOPIC = "table_marker"
 OUTPUT_TOPICS = (CANS_TOPIC, POSES_TOPIC, MARKERS_TOPIC, TABLE_TOPIC)
 TF_ERROR_PERIOD = 5.0  # s between two logged errors about a missing transform
 BUFF_SIZE = 1 << 26  # bytes: rospy's receive buffer, several 640x480 XYZRGB clouds
+CLOUD_TYPE = "sensor_msgs/PointCloud2"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -86,27 +89,32 @@ class CanTrackerConfig:
 
 
 class CanTrackerNode:
-    """Wires a cloud stream to LocalFinder + CanTracker and the results to publishers.
+    """Wires a cloud stream to BackgroundSearchFinder + CanTracker and the results to publishers.
 
     publishers: {topic: object with publish(msg) and get_num_connections()} for OUTPUT_TOPICS;
     lookup(target, source, stamp, timeout) -> 4x4 T_target_from_source or PerceptionError (tf2
     in the node); log: an object with error, warn, info, debug (rospy's by default); now(): the
-    time in seconds (ROS time in the node). process(msg) does one cloud's work under the lock;
-    start_ros() adds the subscriber (lazy), the worker thread, diagnostics and reconfigure.
+    time in seconds (ROS time in the node); search_executor: where the full search runs once a
+    table is known (local_fit.BackgroundSearchFinder; None: on the frame that asks for it, then
+    adopted by the next, deterministic for tests; the node passes a one-thread pool).
+    process(msg) does one cloud's work (a PointCloud2, or the rospy.AnyMsg the subscriber gets)
+    under the lock; start_ros() adds the subscriber (lazy), the worker thread, diagnostics and
+    reconfigure.
     """
 
-    def __init__(self, config, publishers, lookup=None, log=None, now=None):
+    def __init__(self, config, publishers, lookup=None, log=None, now=None, search_executor=None):
         self.config = config
         self.publishers = publishers
         self.lookup = lookup
         self.log = log or _rospy_log()
         self.now = now or time.time
+        self.search_executor = search_executor
         self.lock = threading.Lock()  # one frame at a time, and reconfigure between frames
         self._stats_lock = threading.Lock()  # the callback's counters: it never waits for a frame
         self.stats = StreamStats(config.stats_window)
         self.slot = NewestFrame()
         self.tracker = CanTracker(config.tracker)
-        self._finders = {}  # LocalFinder per cloud frame_id: a second camera keeps its own table
+        self._finders = {}  # BackgroundSearchFinder per cloud frame_id: a second camera keeps its own table
         self._frame = None  # the frame the tracks are in without ~target_frame
         self._last_stamp = None
         self._table_shown = False
@@ -122,42 +130,57 @@ class CanTrackerNode:
 
     def on_cloud(self, msg):
         """The subscriber's callback: counts the cloud and hands it to the worker (newest wins)."""
+        now = self.now()
         with self._stats_lock:
-            self.stats.arrived(self.now())
-        self.slot.put(msg)
+            self.stats.arrived(now)
+        self.slot.put((msg, now))
 
-    def process(self, msg):
+    def process(self, msg, received=None):
         """One cloud: validated, refitted, tracked, published. Bad input is logged (once per kind)
-        and dropped; returns the TrackerUpdate, or None when the frame was dropped."""
+        and dropped; returns the TrackerUpdate, or None when the frame was dropped. The seconds
+        of each stage go to the diagnostics (deserialise, convert, the fit's stages, tracker,
+        messages; with received, the time (now()) the callback got it: delivery, from the
+        cloud's stamp, and queue, until this work began)."""
+        start = self.now()
         t0 = time.perf_counter()
+        stages = {}
         with self.lock:
-            update = self._process(msg)
+            update, stamp = self._process(msg, stages)
         with self._stats_lock:
             if update is None:
                 self.stats.refused()
             else:
                 now = self.now()
-                self.stats.done(now, now - msg.header.stamp.to_sec(), time.perf_counter() - t0)
+                if received is not None:
+                    stages["delivery"], stages["queue"] = received - stamp, start - received
+                self.stats.done(now, now - stamp, time.perf_counter() - t0, stages)
         return update
 
-    def _process(self, msg):
+    def _process(self, msg, stages):
         c = self.config
+        t = time.perf_counter()
         try:
-            validate_cloud(msg, c.max_points)
-            xyz = cloud_to_xyz(msg)
+            if hasattr(msg, "_buff"):  # rospy.AnyMsg: read here, the points viewed in its buffer
+                kind = getattr(msg, "_connection_header", {}).get("type", CLOUD_TYPE)
+                if kind != CLOUD_TYPE:
+                    raise PerceptionError(f"a {kind} message on the cloud topic, not a {CLOUD_TYPE}")
+                msg = cloud_from_bytes(msg._buff)
+            t1 = time.perf_counter()
+            xyz = xyz_view(validate_cloud(msg, c.max_points))
             frame = msg.header.frame_id.strip().lstrip("/")
             if not frame:
                 raise PerceptionError("the cloud has no header.frame_id")
         except PerceptionError as e:
             self._once("can_tracker: cloud dropped", e)
-            return None
+            return None, None
+        stages["deserialise"], stages["convert"] = t1 - t, time.perf_counter() - t1
         stamp = msg.header.stamp.to_sec()
         if not c.target_frame and self._frame not in (None, frame):
             if self._last_stamp is not None and 0 <= stamp - self._last_stamp <= c.tracker.max_gap:
                 self._once("can_tracker: cloud dropped", PerceptionError(
                     f"cloud in frame '{frame}' while the cans are tracked in '{self._frame}'; set ~target_frame "
                     "to track the clouds of several frames in one"))
-                return None
+                return None, None
             switched = self.tracker.reset()
             self._notes("can_tracker", f"the clouds are now in frame '{frame}', no longer in '{self._frame}': "
                         f"tracks {switched} ended")
@@ -170,21 +193,26 @@ class CanTrackerNode:
                 T_out_from_sensor = self.lookup(c.target_frame, frame, msg.header.stamp, c.tf_timeout)
             except PerceptionError as e:
                 self._tf_error(e)
-                return None
+                return None, None
         finder = self._finders.get(frame)
         if finder is None:
-            finder = self._finders[frame] = LocalFinder(c.local)
+            finder = self._finders[frame] = BackgroundSearchFinder(c.local, executor=self.search_executor)
         cans, T_sensor_from_plane, self.last_reason = [], None, ""
+        t = time.perf_counter()
         try:
-            if xyz.ndim == 3:
-                fit = finder.process(np.ascontiguousarray(xyz, dtype=np.float32))
+            if xyz.ndim == 3:  # the view of the message's points: the refit reads it in place
+                fit = finder.process(xyz, frozen=frozen_data(msg))
                 self.last_reason = fit.reason
+                stages.update(fit.timings)
             else:  # an unorganized cloud has no pixel neighbourhoods to refit in: the full search each time
                 fit = af.find_cans(xyz, (0.0, 0.0, 0.0), c.local.auto)
                 self.last_reason = "unorganized cloud"
+                stages["search"] = time.perf_counter() - t
             cans, T_sensor_from_plane = list(fit.cans), fit.T_sensor_from_plane
         except PerceptionError as e:
             self._once("can_tracker: no table in this frame", e)
+        stages["fit"] = stages.pop("total", time.perf_counter() - t)
+        t = time.perf_counter()
         moved = [dataclasses.replace(can, T_sensor_from_can=T_out_from_sensor @ can.T_sensor_from_can) for can in cans]
         update = self.tracker.update(moved, stamp)
         if switched:
@@ -196,8 +224,11 @@ class CanTrackerNode:
             if event != update.reset:
                 self._notes("can_tracker", event)
         self._frame, self._last_stamp, self.last_update = frame, stamp, update
+        stages["tracker"] = time.perf_counter() - t
+        t = time.perf_counter()
         self._publish(update, out_frame, msg.header.stamp, xyz, T_sensor_from_plane, T_out_from_sensor)
-        return update
+        stages["messages"] = time.perf_counter() - t
+        return update, stamp
 
     def _tf_error(self, error):
         """A missing transform: an error at most every TF_ERROR_PERIOD seconds, else debug."""
@@ -211,10 +242,14 @@ class CanTrackerNode:
     # --- outputs ---
 
     def _publish(self, update, frame, stamp, xyz, T_sensor_from_plane, T_out_from_sensor):
+        """Each output that someone subscribes to (none is latched: a message nobody gets is not built)."""
         p = self.publishers
-        p[CANS_TOPIC].publish(messages.track_array(update.tracks, frame, stamp))
-        p[POSES_TOPIC].publish(messages.track_poses(update.tracks, frame, stamp))
-        p[MARKERS_TOPIC].publish(messages.track_markers(update.tracks, update.ended, frame, stamp))
+        if p[CANS_TOPIC].get_num_connections() > 0:
+            p[CANS_TOPIC].publish(messages.track_array(update.tracks, frame, stamp))
+        if p[POSES_TOPIC].get_num_connections() > 0:
+            p[POSES_TOPIC].publish(messages.track_poses(update.tracks, frame, stamp))
+        if p[MARKERS_TOPIC].get_num_connections() > 0:
+            p[MARKERS_TOPIC].publish(messages.track_markers(update.tracks, update.ended, frame, stamp))
         table = p[TABLE_TOPIC]
         extent = None
         if T_sensor_from_plane is not None and table.get_num_connections() > 0:
@@ -256,6 +291,10 @@ class CanTrackerNode:
                   ("compute p90 (ms/frame)", ms(s["compute_p90"])),
                   ("tracks", str(len(self.last_update.tracks) if self.last_update else 0)),
                   ("subscribed to the input", str(self._subscriber is not None or self._ros is None))]
+        stages = [(f"stage {name} p50 / p90 (ms, frames)", f"{ms(p50)} / {ms(p90)} ({n})")
+                  for name, (p50, p90, n) in s["stages"].items()]
+        tracks = values[-2][1]
+        values += stages
         if self._ros is not None and self._subscriber is None:
             return 0, "idle: nobody subscribes to the outputs (~lazy)", values
         if s["since_last_input"] is None:
@@ -264,7 +303,7 @@ class CanTrackerNode:
             return 1, f"no cloud for {s['since_last_input']:.1f} s", values
         if s["processed_rate"] < 0.9 * s["input_rate"]:
             return 1, f"processing {s['processed_rate']:.1f} of {s['input_rate']:.1f} clouds/s", values
-        return 0, f"tracking {values[-2][1]} can(s) at {s['processed_rate']:.1f} Hz", values
+        return 0, f"tracking {tracks} can(s) at {s['processed_rate']:.1f} Hz", values
 
     # --- ROS wiring ---
 
@@ -280,6 +319,8 @@ class CanTrackerNode:
         self._worker = threading.Thread(target=self._work, name="can_tracker_worker", daemon=True)
         self._worker.start()
         rospy.on_shutdown(self.slot.close)
+        if self.search_executor is not None:
+            rospy.on_shutdown(lambda: self.search_executor.shutdown(wait=False, cancel_futures=True))
         self._updater = diagnostic_updater.Updater()
         self._updater.setHardwareID("none")
         self._updater.add("stream", self._diagnostic_task)
@@ -292,12 +333,13 @@ class CanTrackerNode:
         """Subscribes to the input while someone subscribes to an output (or always without ~lazy)."""
         if self._ros is None:
             return
-        from sensor_msgs.msg import PointCloud2
-
         wanted = not self.config.lazy or any(p.get_num_connections() > 0 for p in self.publishers.values())
         with self._stats_lock:
             if wanted and self._subscriber is None:
-                self._subscriber = self._ros.Subscriber(CLOUD_TOPIC, PointCloud2, self.on_cloud, queue_size=1,
+                # AnyMsg: rospy's receiving thread leaves the bytes as they came; the worker reads the
+                # header and views the points in place (conversions.cloud_from_bytes), where genpy would
+                # copy them. tcp_nodelay: the sender's small writes are not held back (Nagle).
+                self._subscriber = self._ros.Subscriber(CLOUD_TOPIC, self._ros.AnyMsg, self.on_cloud, queue_size=1,
                                                         buff_size=BUFF_SIZE, tcp_nodelay=True)
                 self.log.info("can_tracker: subscribed to %s", self._ros.resolve_name(CLOUD_TOPIC))
             elif not wanted and self._subscriber is not None:
@@ -308,11 +350,11 @@ class CanTrackerNode:
 
     def _work(self):
         while True:
-            msg = self.slot.take()
-            if msg is None:
+            item = self.slot.take()
+            if item is None:
                 return
             try:
-                self.process(msg)
+                self.process(*item)
             except Exception:  # noqa: BLE001 - a bug on one frame must not stop the tracker
                 self.log.error("can_tracker: internal error, frame dropped:\n%s", traceback.format_exc())
 
@@ -375,7 +417,9 @@ def main(argv=None):
     kinds = {CANS_TOPIC: CanArray, POSES_TOPIC: PoseArray, MARKERS_TOPIC: MarkerArray, TABLE_TOPIC: Marker}
     publishers = {topic: rospy.Publisher(topic, kind, queue_size=2, subscriber_listener=connections)
                   for topic, kind in kinds.items()}
-    node = CanTrackerNode(config, publishers, lookup=tf2_lookup(buffer), now=rospy.get_time)
+    # One worker for the full search: it runs beside the frames, never two at once.
+    search = concurrent.futures.ThreadPoolExecutor(max_workers=1, thread_name_prefix="can_tracker_search")
+    node = CanTrackerNode(config, publishers, lookup=tf2_lookup(buffer), now=rospy.get_time, search_executor=search)
     connections.changed = node.connections_changed
     node.start_ros()
     rospy.loginfo("can_tracker: %s", config.describe())

@@ -5,12 +5,14 @@ Everything here rests on two primitives that own padding and offsets: :func:`fie
 bytes) and :func:`dtype_to_fields` (the reverse). A message's buffer is then viewed, not copied,
 as a structured array of shape (height, width) for an organized cloud or (width,) for an
 unorganized one; :func:`xyz_view` gives its x, y, z as a float32 (..., 3) strided view.
+:func:`cloud_from_bytes` reads a serialized message (rospy.AnyMsg's buffer) with its data a view too.
 
 The same field tuples ``(name, offset, datatype, count)`` describe PCD files (example_pcl.pcd),
 since PCL's PCLPointField uses the datatype codes of sensor_msgs/PointField.
 """
 from __future__ import annotations
 
+import struct
 from typing import Iterable, Optional, Sequence
 
 import numpy as np
@@ -87,6 +89,53 @@ def _buffer(data) -> np.ndarray:
     if isinstance(data, (bytes, bytearray, memoryview)):
         return np.frombuffer(data, dtype=np.uint8)
     return np.asarray(data, dtype=np.uint8)
+
+
+def cloud_from_bytes(buffer):
+    """A sensor_msgs/PointCloud2 from its ROS serialization (what rospy.AnyMsg holds), its ``data``
+    a memoryview of ``buffer`` (no copy: genpy's deserialize copies the points, about 1 ms for a
+    640x480 XYZRGB cloud). Raises PerceptionError for a buffer that is not a whole PointCloud2."""
+    from sensor_msgs.msg import PointCloud2, PointField
+
+    view = memoryview(buffer).cast("B")
+    msg = PointCloud2()
+    try:
+        msg.header.seq, msg.header.stamp.secs, msg.header.stamp.nsecs = struct.unpack_from("<3I", view, 0)
+        frame_id, end = _string_at(view, 12)
+        msg.header.frame_id = frame_id
+        msg.height, msg.width, n_fields = struct.unpack_from("<3I", view, end)
+        end += 12
+        for _ in range(n_fields):
+            name, end = _string_at(view, end)
+            offset, datatype, count = struct.unpack_from("<IBI", view, end)
+            end += 9
+            msg.fields.append(PointField(name=name, offset=offset, datatype=datatype, count=count))
+        is_bigendian, msg.point_step, msg.row_step, size = struct.unpack_from("<B3I", view, end)
+        end += 13
+        if end + size + 1 != len(view):
+            raise PerceptionError(f"a serialized PointCloud2 of {len(view)} bytes holds {size} bytes of data at "
+                                  f"{end}: not a whole message")
+        msg.data = view[end:end + size]
+        msg.is_bigendian, msg.is_dense = bool(is_bigendian), bool(view[end + size])
+    except (struct.error, UnicodeDecodeError) as e:
+        raise PerceptionError(f"not a serialized PointCloud2 ({len(view)} bytes): {e}") from None
+    return msg
+
+
+def _string_at(view, start):
+    """(the ROS string serialized at start, the offset after it)."""
+    (length,) = struct.unpack_from("<I", view, start)
+    start += 4
+    if start + length > len(view):
+        raise struct.error(f"a string of {length} bytes at {start} runs past the end")
+    return bytes(view[start:start + length]).decode("utf-8"), start + length
+
+
+def frozen_data(cloud) -> bool:
+    """Whether a PointCloud2's points are in memory that never changes (bytes, or a view of bytes,
+    as rospy delivers them): views of them can be read later, from another thread, uncopied."""
+    data = cloud.data
+    return isinstance(data, bytes) or (isinstance(data, memoryview) and isinstance(data.obj, bytes))
 
 
 def cloud_to_array(cloud) -> np.ndarray:
@@ -273,8 +322,9 @@ def validate_cloud(cloud, max_points: Optional[int] = None) -> np.ndarray:
         raise PerceptionError("empty cloud (width x height is 0)")
     if max_points and points.size > max_points:
         raise PerceptionError(f"cloud of {points.size} points, more than ~max_points {max_points}")
-    xyz = xyz_view(points)
-    # z alone first: a third of the work, and enough for any cloud with a measured point.
-    if not (np.isfinite(xyz[..., 2]).any() or np.isfinite(xyz).any()):
+    xyz = xyz_view(points).reshape(-1, 3)
+    # Every 1009th z first (a camera cloud has finite points all over; 300 reads of a 640x480 one
+    # that is not in the cache yet cost 50 us, all of them 1 ms), then all.
+    if not (np.isfinite(xyz[::1009, 2]).any() or np.isfinite(xyz).any()):
         raise PerceptionError("cloud has no finite point (all NaN or inf)")
     return points

@@ -5,7 +5,7 @@ stream's figures.
 oldest frame is discarded; :class:`DropCounter` counts the frames lost on the way (sequence gaps) and
 those discarded. :class:`NewestFrame` (can_tracker) hands a worker only the newest frame, counting those
 replaced as skipped; :class:`StreamStats` gives the rates, skipped frames, latency percentiles and compute
-per frame that can_tracker reports on /diagnostics. Times in seconds.
+per frame (in all and by stage) that can_tracker reports on /diagnostics. Times in seconds.
 """
 from __future__ import annotations
 
@@ -161,9 +161,9 @@ def percentiles(values, qs=(50, 90, 99)):
 
 class StreamStats:
     """Figures of a stream over the last `window` seconds (arrival and processing times are the
-    caller's clock, s): input and processed rates, latency (output time minus the input's stamp)
-    and compute (s per processed frame); plus counts since the start. Not thread-safe: callers
-    hold their lock."""
+    caller's clock, s): input and processed rates, latency (output time minus the input's stamp),
+    compute (s per processed frame) and the seconds of each named stage (on the frames that ran
+    it); plus counts since the start. Not thread-safe: callers hold their lock."""
 
     def __init__(self, window=5.0):
         if not window > 0:
@@ -171,6 +171,7 @@ class StreamStats:
         self.window = float(window)
         self._arrivals = collections.deque()
         self._processed = collections.deque()  # (time, latency, compute)
+        self._stages = {}  # name: deque of (time, seconds)
         self.received = 0
         self.processed = 0
         self.dropped = 0  # frames refused (bad input, no transform)
@@ -182,6 +183,9 @@ class StreamStats:
             self._arrivals.popleft()
         while self._processed and self._processed[0][0] < start:
             self._processed.popleft()
+        for times in self._stages.values():
+            while times and times[0][0] < start:
+                times.popleft()
 
     def arrived(self, now):
         """One frame arrived at `now`."""
@@ -190,10 +194,13 @@ class StreamStats:
         self._arrivals.append(now)
         self._trim(now)
 
-    def done(self, now, latency, compute):
-        """One frame processed and published at `now`, latency (s) after its stamp, in compute (s)."""
+    def done(self, now, latency, compute, stages=None):
+        """One frame processed and published at `now`, latency (s) after its stamp, in compute (s);
+        stages: {name: s} of the parts of that work (optional)."""
         self.processed += 1
         self._processed.append((now, float(latency), float(compute)))
+        for name, seconds in (stages or {}).items():
+            self._stages.setdefault(name, collections.deque()).append((now, float(seconds)))
         self._trim(now)
 
     def refused(self):
@@ -203,14 +210,20 @@ class StreamStats:
     def summary(self, now):
         """A dict of the figures at `now`: input_rate, processed_rate (Hz, over the window),
         latency_p50/p90/p99 and compute_mean/compute_p90 (s, over the window; NaN for no frame),
+        stages ({name: (p50 s, p90 s, frames)} over the window, in the order first seen),
         received, processed, dropped (counts since the start) and since_last_input (s, None
         before the first)."""
         self._trim(now)
         latency = percentiles(p[1] for p in self._processed)
         compute = [p[2] for p in self._processed]
+        stages = {}
+        for name, times in self._stages.items():
+            if times:
+                q = percentiles((t[1] for t in times), (50, 90))
+                stages[name] = (q[50], q[90], len(times))
         return {"input_rate": len(self._arrivals) / self.window, "processed_rate": len(self._processed) / self.window,
                 "latency_p50": latency[50], "latency_p90": latency[90], "latency_p99": latency[99],
                 "compute_mean": float(np.mean(compute)) if compute else float("nan"),
-                "compute_p90": percentiles(compute, (90,))[90],
+                "compute_p90": percentiles(compute, (90,))[90], "stages": stages,
                 "received": self.received, "processed": self.processed, "dropped": self.dropped,
                 "since_last_input": None if self.last_arrival is None else now - self.last_arrival}

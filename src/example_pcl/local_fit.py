@@ -22,10 +22,16 @@ sensor frame, metres, NaN holes):
 
 :class:`LocalFinder` strings these together frame after frame and falls back on the full search
 (auto_finder.find_cans) on the first frame, every ``search_period`` frames, and whenever the
-table or a can is lost or the scene changed. Every length is in metres.
+table or a can is lost or the scene changed. It can also leave that search to its caller
+(``process(xyz, search=False)``): the frame keeps what the refit found, and the search's result
+(:func:`search_frame`, on that frame's copy) is handed back later with ``adopt`` as the seeds of
+the next refit. :class:`BackgroundSearchFinder` does so with the search on an executor (a worker
+thread in can_tracker), so the 10-20 ms search leaves the frame path. Every length is in metres.
 """
+import dataclasses
 import math
 import time
+from concurrent.futures import Future
 from dataclasses import dataclass, field
 from typing import List
 
@@ -253,9 +259,12 @@ def new_standing_points(standing, grid, T_plane_from_sensor, cans, known, config
 @dataclass(frozen=True, eq=False)
 class FrameFit:
     """One frame's result. cans: example_pcl.can.Can list (sensor frame); table: Plane;
-    T_sensor_from_plane: 4x4; searched: whether the full search ran; reason: why it ran ("" when
-    not: "first frame", "periodic", "table lost: ...", "can k lost: ...", "scene changed: ...");
-    timings: seconds per stage (table, cans, change, search, total; a stage not run is absent)."""
+    T_sensor_from_plane: 4x4; searched: whether the full search ran on this frame; reason: why
+    the search was wanted ("" when not: "first frame", "periodic", "table lost: ...", "can k lost:
+    ...", "scene changed: ..."; with searched False, the search was left to the caller and the
+    cans are the refit's, the lost ones left out); adopted: whether a search of an earlier frame
+    seeded this frame's refit; timings: seconds per stage (table, cans, change, search, copy,
+    background search, total; a stage not run is absent)."""
 
     cans: List[Can]
     table: g.Plane
@@ -263,16 +272,49 @@ class FrameFit:
     searched: bool
     reason: str
     timings: dict
+    adopted: bool = False
+
+
+@dataclass(frozen=True, eq=False)
+class SceneSearch:
+    """The full search on one frame, as LocalFinder keeps it: table (Plane), T_sensor_from_plane
+    (4x4), cans (Can list, sensor frame), known (bool coarse grid: the points standing on the
+    table outside every can, see new_standing_points), seconds (wall time of the search)."""
+
+    table: g.Plane
+    T_sensor_from_plane: np.ndarray
+    cans: List[Can]
+    known: np.ndarray
+    seconds: float
+
+
+def search_frame(xyz, config=LocalFitConfig(), viewpoint=(0.0, 0.0, 0.0)):
+    """The full search (auto_finder.find_cans) on an organized frame: a SceneSearch. xyz: float32
+    (H, W, 3), any strides, sensor frame (m). Raises PerceptionError when it finds no table."""
+    t0 = time.perf_counter()
+    pts = _organized(xyz)
+    viewpoint = _point(viewpoint)
+    # The refit reads a strided view (x, y, z inside XYZRGB points) as fast as a copy; the search,
+    # many passes over the whole cloud, is faster on a contiguous one: copied only here.
+    result = af.find_cans(np.ascontiguousarray(pts), viewpoint, config.auto)
+    T, cans = result.T_sensor_from_plane, list(result.cans)
+    standing, grid = standing_grid(pts, T, config, viewpoint)
+    known = standing & ~in_can_regions(grid, transforms.invert(T), cans, config.region_margin)
+    return SceneSearch(table=result.table, T_sensor_from_plane=T, cans=cans, known=known,
+                       seconds=time.perf_counter() - t0)
 
 
 class LocalFinder:
     """Finds the table and the cans frame after frame: the local refit where it holds, the full
-    search (auto_finder.find_cans) where it does not (see the module docstring)."""
+    search (auto_finder.find_cans) where it does not (see the module docstring). epoch counts the
+    times its state was replaced other than by adopt (reset, a search of its own): a search begun
+    in an earlier epoch is older than what the finder knows."""
 
     def __init__(self, config=LocalFitConfig(), viewpoint=(0.0, 0.0, 0.0)):
         config.validate()
         self.config = config
         self.viewpoint = _point(viewpoint)
+        self.epoch = 0
         self.reset()
 
     def reset(self):
@@ -282,46 +324,78 @@ class LocalFinder:
         self._cans = []
         self._known = None
         self._since_search = 0
+        self.epoch += 1
 
-    def process(self, xyz):
+    @property
+    def knows_table(self):
+        """Whether a table is known (else the next frame runs the full search whatever asked)."""
+        return self._table is not None
+
+    def process(self, xyz, search=True):
         """One organized frame (float32 (H, W, 3), any strides, sensor frame, m): a FrameFit. Raises
-        PerceptionError (and forgets everything) when even the full search finds no table."""
+        PerceptionError (and forgets everything) when even the full search finds no table.
+
+        search=False: when the refit of a known table holds but the full search is wanted anyway
+        (periodic, a can lost, the scene changed), the frame's result is the refit's (the lost cans
+        left out; FrameFit.searched False, reason set) and the search is the caller's, handed back
+        with adopt. Without a table (first frame, table lost) the search runs here all the same.
+        """
         t0 = time.perf_counter()
         pts = _organized(xyz)
         timings = {}
-        reason = self._local(pts, timings)
-        if reason:
+        reason, refitted = self._local(pts, timings, defer=not search)
+        if refitted:
+            self._since_search += 1
+        else:
             t = time.perf_counter()
             try:
-                self._search(pts)
+                self._take(search_frame(pts, self.config, self.viewpoint))
             except PerceptionError:
                 self.reset()
                 raise
+            self.epoch += 1
             timings["search"] = time.perf_counter() - t
-        else:
-            self._since_search += 1
         timings["total"] = time.perf_counter() - t0
-        return FrameFit(cans=list(self._cans), table=self._table, T_sensor_from_plane=self._T, searched=bool(reason),
-                        reason=reason, timings=timings)
+        return FrameFit(cans=list(self._cans), table=self._table, T_sensor_from_plane=self._T,
+                        searched=not refitted, reason=reason, timings=timings)
 
-    def _local(self, pts, timings):
-        """Refits in place; returns why the full search must run instead ("" when it need not)."""
+    def adopt(self, found):
+        """Takes a SceneSearch (of this frame or an earlier one) as the seeds of the next refit: its
+        table, its cans and its scene-change mask. A can that the refits since that frame have
+        followed (an upright can of the search whose base centre is within its radius of a
+        refitted one) keeps its fresher fit, so a can moved meanwhile is looked for where it is."""
+        cans = []
+        for can in found.cans:
+            near = [c for c in self._cans if not c.lying and not can.lying
+                    and np.linalg.norm(c.base_center - can.base_center) < can.radius]
+            cans.append(min(near, key=lambda c: np.linalg.norm(c.base_center - can.base_center)) if near else can)
+        self._take(dataclasses.replace(found, cans=cans))
+
+    def _take(self, found):
+        self._table, self._T, self._cans, self._known = found.table, found.T_sensor_from_plane, list(found.cans), \
+            found.known
+        self._since_search = 0
+
+    def _local(self, pts, timings, defer):
+        """Refits; returns (why the full search is wanted or "", whether the refit was kept). The
+        refit is kept when nothing calls for the search, or with defer when the table held."""
         c = self.config
         if self._table is None or (self._known is not None and self._known.shape != self._grid_shape(pts)):
-            return "first frame"
-        if self._since_search + 1 >= c.search_period:
-            return "periodic"
+            return "first frame", False
+        periodic = "periodic" if self._since_search + 1 >= c.search_period else ""
+        if periodic and not defer:
+            return periodic, False
         t = time.perf_counter()
         try:
             table, T = refit_table(pts, self._table, c, self.viewpoint)
         except PerceptionError as e:
-            return f"table lost: {e}"
+            return f"table lost: {e}", False
         finally:
             timings["table"] = time.perf_counter() - t
         t = time.perf_counter()
         T_plane_from_sensor = transforms.invert(T)
         sensor = transforms.apply(T_plane_from_sensor, self.viewpoint)
-        cans = []
+        cans, lost = [], ""
         for k, can in enumerate(self._cans):
             if can.lying:  # refit_can fits upright cans; a lying one is kept until the next search
                 cans.append(can)
@@ -329,28 +403,108 @@ class LocalFinder:
             try:
                 cans.append(_refit_can(pts, T, T_plane_from_sensor, sensor, can, c))
             except PerceptionError as e:
-                timings["cans"] = time.perf_counter() - t
-                return f"can {k} lost: {e}"
+                lost = lost or f"can {k} lost: {e}"
+                if not defer:
+                    timings["cans"] = time.perf_counter() - t
+                    return lost, False
         timings["cans"] = time.perf_counter() - t
         t = time.perf_counter()
         standing, grid = standing_grid(pts, T, c, self.viewpoint)
         n_new = new_standing_points(standing, grid, T_plane_from_sensor, cans, self._known, c)
         timings["change"] = time.perf_counter() - t
-        if n_new >= c.min_new_points:
-            return f"scene changed: {n_new} new point(s) stand on the table"
+        changed = f"scene changed: {n_new} new point(s) stand on the table" if n_new >= c.min_new_points else ""
+        reason = lost or changed or periodic
+        if reason and not defer:
+            return reason, False
         self._table, self._T, self._cans = table, T, cans
-        return ""
+        return reason, True
 
     def _grid_shape(self, pts):
         s = int(self.config.change_step)
         return (-(-pts.shape[0] // s), -(-pts.shape[1] // s))
 
-    def _search(self, pts):
-        # The refit reads a strided view (x, y, z inside XYZRGB points) as fast as a copy; the search,
-        # many passes over the whole cloud, is faster on a contiguous one: copied only here.
-        result = af.find_cans(np.ascontiguousarray(pts), self.viewpoint, self.config.auto)
-        self._table, self._T, self._cans = result.table, result.T_sensor_from_plane, list(result.cans)
-        standing, grid = standing_grid(pts, self._T, self.config, self.viewpoint)
-        self._known = standing & ~in_can_regions(grid, transforms.invert(self._T), self._cans,
-                                                 self.config.region_margin)
-        self._since_search = 0
+
+def _run_now(function, *args):
+    """An executor's submit that runs function at once: a finished Future."""
+    future = Future()
+    try:
+        future.set_result(function(*args))
+    except Exception as e:  # noqa: BLE001 - handed over, as an executor would
+        future.set_exception(e)
+    return future
+
+
+class BackgroundSearchFinder:
+    """A LocalFinder whose full search, once a table is known, runs beside the frames.
+
+    executor: an object with submit(function, *args) -> concurrent.futures.Future, e.g. a
+    ThreadPoolExecutor of one worker (its own thread, so the node owns its lifetime); None runs
+    each search at once (deterministic, for tests and replays). process(xyz) refits every frame
+    (LocalFinder.process with search=False); a frame that wants the full search hands itself (a
+    copy unless its memory never changes) to the executor unless a search is already under way;
+    the first frame after that search finished adopts its result (LocalFinder.adopt) and refits
+    from it. A search begun before a reset or a search of the finder's own is dropped; one that
+    found no table resets the finder (the next frame searches at once). With search_period 1
+    (every frame) or no table known, the search runs on the frame itself, as LocalFinder's does.
+    """
+
+    def __init__(self, config=LocalFitConfig(), viewpoint=(0.0, 0.0, 0.0), executor=None):
+        self.finder = LocalFinder(config, viewpoint)
+        self.executor = executor
+        self._pending = None  # (Future of a SceneSearch, the finder's epoch when it began)
+
+    @property
+    def config(self):
+        return self.finder.config
+
+    @property
+    def searching(self):
+        """Whether a search is under way (submitted, its result not adopted yet)."""
+        return self._pending is not None
+
+    def reset(self):
+        """Forgets the table and the cans (the next frame runs the full search); a search under way
+        is dropped."""
+        self.finder.reset()
+        self._pending = None
+
+    def process(self, xyz, frozen=False):
+        """One organized frame (float32 (H, W, 3), any strides, sensor frame, m): a FrameFit (see
+        the class docstring). frozen: xyz views memory that never changes (a received message's
+        bytes), so the search may read it later without a copy here. Raises PerceptionError when
+        a search on this frame finds no table."""
+        t0 = time.perf_counter()
+        found = self._finished()
+        if found is not None:
+            self.finder.adopt(found)
+        if self.config.search_period <= 1:
+            fit = self.finder.process(xyz)
+        else:
+            fit = self.finder.process(xyz, search=False)
+        timings = dict(fit.timings)
+        if fit.reason and not fit.searched and self._pending is None:
+            t = time.perf_counter()
+            # The search's own copy of a frame that may change; search_frame makes it contiguous anyway.
+            frame = xyz if frozen else np.array(xyz, dtype=np.float32, order="C")
+            t1 = time.perf_counter()
+            submit = self.executor.submit if self.executor is not None else _run_now
+            self._pending = (submit(search_frame, frame, self.config, self.finder.viewpoint), self.finder.epoch)
+            timings["copy"], timings["search" if self.executor is None else "submit"] = t1 - t, time.perf_counter() - t1
+        if found is not None:
+            timings["background search"] = found.seconds
+        timings["total"] = time.perf_counter() - t0
+        return dataclasses.replace(fit, timings=timings, adopted=found is not None)
+
+    def _finished(self):
+        """The result of a search that finished and is still current, else None."""
+        if self._pending is None or not self._pending[0].done():
+            return None
+        future, epoch = self._pending
+        self._pending = None
+        if epoch != self.finder.epoch:
+            return None
+        try:
+            return future.result()
+        except PerceptionError:
+            self.finder.reset()  # as a search on the frame would: no table there, nothing kept
+            return None

@@ -2,7 +2,8 @@
 """rostest node of can_tracker.test: can_tracker through ROS on a generated moving sequence.
 
 The sequence (scene_sequence, 36 frames): the camera drifts; can 0 stays, can 1 is removed after
-frame 19, can 2 appears at frame 6 and moves 3 cm between frames 12 and 24. Each frame is sent
+frame 19, can 2 appears at frame 6 (tracked within NEW_CAN_FRAMES) and moves 3 cm between frames
+12 and 24. Each frame is sent
 at 30 Hz as a PointCloud2 in frame ``camera`` with the camera's true pose in the table frame on
 /tf at the cloud's stamp; base_link -> table is a static transform (/tf_static), so a static
 can is static in base_link, where both trackers publish (~target_frame).
@@ -34,8 +35,12 @@ from example_pcl import scene_sequence as ss
 from example_pcl.msg import CanArray
 
 SPEC = ss.SequenceSpec(n_frames=36)
-REMOVED, ADDED = 1, 2  # truth ids: removed after frame LAST_SEEN, added at frame 6
+REMOVED, ADDED = 1, 2  # truth ids: removed after frame LAST_SEEN, added at frame FIRST_SEEN
 LAST_SEEN = 19
+FIRST_SEEN = 6
+# frames: can_tracker's full search runs beside the frames (local_fit.BackgroundSearchFinder), so a can
+# that appears is tracked from the first frame after the search its frame started; within this many.
+NEW_CAN_FRAMES = 5
 RATE = 30.0
 BASE_FROM_TABLE = transforms.from_translation_quaternion_xyzw((0.4, 0.0, 0.75), (0.0, 0.0, 0.0, 1.0))  # /tf_static
 MAX_MISSED = 5  # can_tracker's default ~max_missed
@@ -147,8 +152,11 @@ class CanTrackerTests(unittest.TestCase):
             outputs = {c.id: messages.matrix_from_pose(c.pose) for c in msg.cans}
             matched = {}
             for truth_id, (centre, axis) in truth.items():
-                track_id, T = min(outputs.items(), key=lambda kv: np.linalg.norm(kv[1][:3, 3] - centre))
-                error = np.linalg.norm(T[:3, 3] - centre)
+                nearest = min(outputs.items(), key=lambda kv: np.linalg.norm(kv[1][:3, 3] - centre), default=None)
+                error = np.inf if nearest is None else np.linalg.norm(nearest[1][:3, 3] - centre)
+                if truth_id == ADDED and i < FIRST_SEEN + NEW_CAN_FRAMES and error >= TOLERANCE:
+                    continue  # not found yet: the search is under way
+                track_id, T = nearest
                 self.assertLess(error, TOLERANCE, f"frame {i}: can {truth_id} (track {track_id}) {1e3 * error:.2f} mm "
                                 "from the truth")
                 self.assertGreater(T[:3, 2] @ axis, np.cos(0.02), f"frame {i}: can {truth_id}'s axis")
@@ -208,7 +216,8 @@ class CanTrackerTests(unittest.TestCase):
         self.assertEqual(mapping, live_mapping)
         for i in set(per_frame) & set(live_frames):
             for truth_id, (track_id, p) in per_frame[i].items():
-                self.assertLess(np.linalg.norm(p - live_frames[i][truth_id][1]), AGREEMENT, f"frame {i}")
+                if truth_id in live_frames[i]:  # the new can may be found a frame earlier in one run
+                    self.assertLess(np.linalg.norm(p - live_frames[i][truth_id][1]), AGREEMENT, f"frame {i}")
         recorder.close()
         os.remove(path)
         os.rmdir(tmp)

@@ -1,7 +1,7 @@
 """Unit tests of example_pcl.can_tracker_node without a master: the node class on stub publishers,
 fed generated sequences (scene_sequence) and bad input; its config from params."""
 import dataclasses
-
+import io
 import numpy as np
 import pytest
 
@@ -50,9 +50,10 @@ class StubLog:
         return [line for lv, line in self.lines if lv == level]
 
 
-def make_node(config=ctn.CanTrackerConfig(), lookup=None, now=lambda: 0.0):
+def make_node(config=ctn.CanTrackerConfig(), lookup=None, now=lambda: 0.0, search_executor=None):
     publishers = {topic: StubPublisher() for topic in ctn.OUTPUT_TOPICS}
-    return ctn.CanTrackerNode(config, publishers, lookup=lookup, log=StubLog(), now=now)
+    return ctn.CanTrackerNode(config, publishers, lookup=lookup, log=StubLog(), now=now,
+                              search_executor=search_executor)
 
 
 def cloud(xyz, stamp, frame_id="camera"):
@@ -117,6 +118,60 @@ def test_poses_in_the_target_frame(frames):
     truth = [transforms.apply(T, c["base_center"]) for c in frames[2].truth["cans"]]
     for t in update.tracks:
         assert min(np.linalg.norm(t.base_center - p) for p in truth) < 0.003
+
+
+def any_msg(msg, kind="sensor_msgs/PointCloud2"):
+    """msg as the node's subscriber gets it: rospy.AnyMsg holding the serialized bytes."""
+    buffer = io.BytesIO()
+    msg.serialize(buffer)
+    raw = rospy.AnyMsg().deserialize(buffer.getvalue())
+    raw._connection_header = {"type": kind}
+    return raw
+
+
+def test_raw_messages_give_what_deserialized_ones_give(frames):
+    """Clouds as rospy.AnyMsg bytes (the subscriber's) give the same tracks and outputs as PointCloud2s."""
+    a, b = make_node(), make_node()
+    for f in frames[:3]:
+        msg = cloud(f.xyz, 100.0 + f.stamp)
+        ua, ub = a.process(msg), b.process(any_msg(msg))
+        assert [(t.id, t.base_center.tolist(), t.radius) for t in ua.tracks] == \
+            [(t.id, t.base_center.tolist(), t.radius) for t in ub.tracks]
+    assert a.publishers[ctn.CANS_TOPIC].messages[-1] == b.publishers[ctn.CANS_TOPIC].messages[-1]
+
+
+def test_a_raw_message_of_another_type_is_dropped_once(frames):
+    """Something else than a PointCloud2 on the cloud topic: dropped, one error naming its type."""
+    node = make_node()
+    wrong = any_msg(cloud(frames[0].xyz, 100.0), kind="sensor_msgs/Image")
+    assert node.process(wrong) is None and node.process(wrong) is None
+    assert len(node.log.at("error")) == 1 and "sensor_msgs/Image" in node.log.at("error")[0]
+    assert node.process(any_msg(cloud(frames[0].xyz, 100.0))) is not None
+
+
+def test_diagnostics_report_each_stage(frames):
+    """/diagnostics gets p50 / p90 of every stage of the frames' work."""
+    node = make_node()
+    stream(node, frames[:3])
+    values = dict(node.diagnose()[2])
+    for stage in ("deserialise", "convert", "table", "cans", "change", "search", "fit", "tracker", "messages"):
+        assert any(key.startswith(f"stage {stage} p50") for key in values), stage
+    assert values["stage fit p50 / p90 (ms, frames)"].endswith("(3)")
+
+
+def test_the_search_runs_beside_the_frames(frames, manual_executor):
+    """A new can: its frame is published from the refit and hands the search to the executor; the
+    frame after the search finished tracks the new can, every output in stamp order."""
+    executor = manual_executor
+    node = make_node(search_executor=executor)
+    before = stream(node, frames[:7])
+    assert len(executor.calls) == 1 and node.last_reason.startswith("scene changed")
+    assert set(ids_by_truth(before[-1], frames[6])) == {0, 1}
+    executor.run()
+    after = stream(node, frames[7:], t0=100.0)[-1]
+    assert set(ids_by_truth(after, frames[-1])) == {0, 1, 2}
+    stamps = [m.header.stamp for m in node.publishers[ctn.CANS_TOPIC].messages]
+    assert stamps == sorted(stamps) and len(stamps) == len(frames)
 
 
 @pytest.mark.parametrize("name,make,match", [
@@ -229,12 +284,28 @@ def test_an_unorganized_cloud_is_searched_each_frame(frames):
     assert len(updates[-1].tracks) == 2 and [t.id for t in updates[-1].tracks] == [t.id for t in updates[0].tracks]
 
 
-def test_no_table_marker_work_without_its_subscriber(frames):
-    """Nobody on table_marker: the table's extent is not computed and nothing is published there."""
+@pytest.mark.parametrize("topic", ctn.OUTPUT_TOPICS)
+def test_no_work_for_an_output_nobody_subscribes(frames, topic):
+    """Nobody on one output: nothing is built or published there (for table_marker: not even the
+    table's extent); the other outputs go on."""
     node = make_node()
-    node.publishers[ctn.TABLE_TOPIC].connections = 0
+    node.publishers[topic].connections = 0
     stream(node, frames[:2])
-    assert node.publishers[ctn.TABLE_TOPIC].messages == []
+    assert node.publishers[topic].messages == []
+    assert all(len(node.publishers[t].messages) == 2 for t in ctn.OUTPUT_TOPICS if t != topic)
+
+
+def test_the_callback_hands_the_newest_cloud_to_the_work_with_its_arrival(frames):
+    """on_cloud counts the cloud and queues it with its arrival time; the work reports how long it
+    travelled (delivery, from its stamp) and waited (queue)."""
+    clock = iter([100.05, 100.08, 100.09, 100.1, 100.1])
+    node = make_node(now=lambda: next(clock))
+    node.on_cloud(cloud(frames[0].xyz, 100.0))
+    msg, received = node.slot.take(timeout=0)
+    assert received == 100.05 and node.stats.received == 1
+    node.process(msg, received)
+    stages = node.stats.summary(100.1)["stages"]
+    assert stages["delivery"][0] == pytest.approx(0.05) and stages["queue"][0] == pytest.approx(0.03)
 
 
 def test_reconfigure_changes_the_tracker_and_restarts_the_finders(frames):

@@ -84,6 +84,59 @@ def test_round_trip_through_serialization():
     assert_array_equal(conversions.cloud_to_xyz(back), xyz)
 
 
+def serialized(msg):
+    from io import BytesIO
+
+    buf = BytesIO()
+    msg.serialize(buf)
+    return buf.getvalue()
+
+
+@pytest.mark.parametrize("make", [
+    lambda: conversions.xyz_to_cloud(*organized(), frame_id="kamera_\u00f6", stamp=None),
+    lambda: pcl_style_msg(*organized(3, 4)),
+    lambda: conversions.xyz_to_cloud(np.arange(12, dtype=np.float32).reshape(4, 3), frame_id="cam"),
+])
+def test_cloud_from_bytes_reads_what_genpy_reads(make):
+    """A serialized cloud read by cloud_from_bytes equals genpy's deserialize, field by field."""
+    msg = make()
+    msg.header.seq, msg.header.stamp.secs, msg.header.stamp.nsecs = 7, 1234, 5678
+    raw = serialized(msg)
+    ours, theirs = conversions.cloud_from_bytes(raw), PointCloud2().deserialize(raw)
+    for name in ("header", "height", "width", "fields", "is_bigendian", "point_step", "row_step", "is_dense"):
+        assert getattr(ours, name) == getattr(theirs, name), name
+    assert bytes(ours.data) == theirs.data
+    assert_array_equal(conversions.cloud_to_xyz(ours), conversions.cloud_to_xyz(theirs))
+
+
+def test_cloud_from_bytes_views_the_buffer():
+    """The points of a cloud read by cloud_from_bytes are the serialized bytes themselves, not a copy."""
+    raw = serialized(conversions.xyz_to_cloud(*organized(), frame_id="cam"))
+    xyz = conversions.cloud_to_xyz(conversions.cloud_from_bytes(raw))
+    assert np.shares_memory(xyz, np.frombuffer(raw, np.uint8)) and not xyz.flags.writeable
+
+
+@pytest.mark.parametrize("cut", [slice(0, 10), slice(0, -2), slice(0, None, None)])
+def test_cloud_from_bytes_refuses_a_partial_message(cut):
+    """A truncated buffer, or one with bytes after the message, is a PerceptionError."""
+    raw = serialized(conversions.xyz_to_cloud(*organized(), frame_id="cam"))
+    broken = raw[cut] if cut.stop is not None else raw + b"\0"
+    with pytest.raises(PerceptionError, match="PointCloud2"):
+        conversions.cloud_from_bytes(broken)
+
+
+def test_frozen_data_is_bytes_or_a_view_of_bytes():
+    """Only immutable point data counts as frozen: bytes and views of bytes, not bytearray or lists."""
+    raw = serialized(conversions.xyz_to_cloud(*organized(), frame_id="cam"))
+    assert conversions.frozen_data(conversions.cloud_from_bytes(raw))
+    assert conversions.frozen_data(PointCloud2().deserialize(raw))
+    msg = conversions.xyz_to_cloud(*organized())
+    assert conversions.frozen_data(msg)
+    for mutable in (bytearray(msg.data), memoryview(bytearray(msg.data)), list(msg.data)):
+        msg.data = mutable
+        assert not conversions.frozen_data(msg)
+
+
 def test_unorganized_and_dense():
     """An (N, 3) array gives height 1, is_dense true when all finite."""
     xyz = np.arange(12, dtype=np.float32).reshape(4, 3)

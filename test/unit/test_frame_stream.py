@@ -77,6 +77,20 @@ def test_stream_stats_rates_and_percentiles():
         10.0 - 59 / 30)
 
 
+def test_stream_stats_stages():
+    """Each stage's p50 and p90 over the frames that ran it, in the order first seen; old ones leave."""
+    stats = StreamStats(window=1.0)
+    for k in range(10):
+        stats.done(k / 10, latency=0.02, compute=0.005,
+                   stages={"convert": 0.001 * (k + 1), **({"search": 0.02} if k % 5 == 0 else {})})
+    s = stats.summary(0.95)
+    assert list(s["stages"]) == ["convert", "search"]
+    assert s["stages"]["convert"] == (pytest.approx(0.0055), pytest.approx(0.0091), 10)
+    assert s["stages"]["search"] == (pytest.approx(0.02), pytest.approx(0.02), 2)
+    stats.done(2.5, latency=0.02, compute=0.005, stages={"convert": 0.5})
+    assert stats.summary(2.5)["stages"] == {"convert": (0.5, 0.5, 1)}
+
+
 def test_percentiles_of_nothing_are_nan():
     assert all(np.isnan(v) for v in percentiles([]).values())
     assert percentiles([1.0, 2.0, 3.0], (50,)) == {50: 2.0}

@@ -8,6 +8,7 @@ import pytest
 from numpy.testing import assert_allclose
 
 from example_pcl import auto_finder as af
+from example_pcl import conversions
 from example_pcl import local_fit as lf
 from example_pcl import scene_sequence as ss
 from example_pcl.errors import PerceptionError
@@ -108,6 +109,119 @@ def test_local_finder_refits_and_searches_when_needed(frames):
         assert len(r.cans) == len(f.truth["cans"])
         for truth in f.truth["cans"]:
             assert np.linalg.norm(nearest(r.cans, truth["base_center"]).base_center - truth["base_center"]) < 0.001
+
+
+def test_local_finder_reads_a_strided_view_as_a_copy(frames):
+    """x, y, z viewed inside 16-byte XYZRGB points give exactly the copy's results, search and refits."""
+    views = [conversions.xyz_view(conversions.make_points(f.xyz, np.zeros(f.xyz.shape, np.uint8)))
+             for f in frames[:4]]
+    assert not views[0].flags.c_contiguous
+    strided, copied = lf.LocalFinder(lf.LocalFitConfig(search_period=3)), lf.LocalFinder(lf.LocalFitConfig(search_period=3))
+    for view in views:
+        a, b = strided.process(view), copied.process(np.ascontiguousarray(view))
+        assert (a.searched, a.reason, len(a.cans)) == (b.searched, b.reason, len(b.cans))
+        assert np.array_equal(a.T_sensor_from_plane, b.T_sensor_from_plane)
+        for x, y in zip(a.cans, b.cans):
+            assert np.array_equal(x.T_sensor_from_can, y.T_sensor_from_can) and x.radius == y.radius
+            assert np.array_equal(x.indices, y.indices)
+
+
+def added_can():
+    spec = ss.SequenceSpec()
+    return next(c for c in spec.cans if c.first > 0)
+
+
+def test_background_search_leaves_the_frame_and_seeds_a_later_refit(frames, manual_executor):
+    """A can that appears: the frame keeps the refit and hands the search (one, however many frames
+    want it) to the executor; the first frame after it finished refits the new can from its result."""
+    k = added_can().first
+    executor = manual_executor
+    finder = lf.BackgroundSearchFinder(executor=executor)
+    first = finder.process(frames[k - 2].xyz)
+    assert first.searched and first.reason == "first frame" and executor.calls == []
+    assert not finder.process(frames[k - 1].xyz).reason
+    wants = [finder.process(f.xyz) for f in frames[k:k + 2]]
+    assert [(w.searched, w.reason.split(":")[0]) for w in wants] == [(False, "scene changed")] * 2
+    assert len(executor.calls) == 1 and finder.searching and "submit" in wants[0].timings
+    assert all(len(w.cans) == len(frames[k - 1].truth["cans"]) for w in wants)  # the new can not yet
+    executor.run()
+    seeded = finder.process(frames[k + 2].xyz)
+    assert seeded.adopted and not seeded.searched and not seeded.reason and not finder.searching
+    assert "background search" in seeded.timings and executor.calls == []
+    truth = frames[k + 2].truth["cans"]
+    assert len(seeded.cans) == len(truth)
+    for can in truth:
+        assert np.linalg.norm(nearest(seeded.cans, can["base_center"]).base_center - can["base_center"]) < 0.001
+
+
+def test_background_search_keeps_the_cans_it_did_not_lose(frames, manual_executor):
+    """A can removed: its refit fails, the others are kept on that frame, the search goes to the executor."""
+    removed = next(c for c in ss.SequenceSpec().cans if c.last is not None)
+    executor = manual_executor
+    finder = lf.BackgroundSearchFinder(executor=executor)
+    finder.process(frames[removed.last].xyz)
+    fit = finder.process(frames[removed.last + 1].xyz)
+    assert not fit.searched and " lost: " in fit.reason and len(executor.calls) == 1
+    truth = frames[removed.last + 1].truth["cans"]
+    assert len(fit.cans) == len(truth)
+    for can in truth:
+        assert np.linalg.norm(nearest(fit.cans, can["base_center"]).base_center - can["base_center"]) < 0.001
+
+
+def test_adopt_keeps_the_fresher_refit_of_a_can(frames):
+    """A search of an earlier frame gives its table and new cans; a can refitted since keeps that fit."""
+    finder = lf.LocalFinder()
+    old = lf.search_frame(frames[0].xyz)
+    finder.process(frames[0].xyz)
+    refitted = finder.process(frames[3].xyz)
+    assert not refitted.searched
+    finder.adopt(old)
+    assert finder._table is old.table and finder._known is old.known
+    assert [id(c) for c in finder._cans] == [id(nearest(refitted.cans, c.base_center)) for c in old.cans]
+
+
+def test_a_search_begun_before_a_reset_is_dropped(frames, manual_executor):
+    """After a reset the next frame searches on itself; the older search's result is never taken."""
+    executor = manual_executor
+    finder = lf.BackgroundSearchFinder(lf.LocalFitConfig(search_period=2), executor=executor)
+    finder.process(frames[0].xyz)
+    finder.process(frames[1].xyz)
+    assert finder.process(frames[2].xyz).reason == "periodic" and len(executor.calls) == 1
+    finder.reset()
+    executor.run()
+    fit = finder.process(frames[3].xyz)
+    assert fit.searched and fit.reason == "first frame" and not fit.adopted and not finder.searching
+
+
+def test_a_background_search_without_a_table_makes_the_next_frame_search(frames, manual_executor):
+    """A search that found no table resets the finder, as a search on the frame would."""
+    executor = manual_executor
+    finder = lf.BackgroundSearchFinder(lf.LocalFitConfig(search_period=2), executor=executor)
+    for f in frames[:3]:
+        finder.process(f.xyz)
+    future, function, args = executor.calls.pop()
+    future.set_exception(PerceptionError("no plane"))
+    fit = finder.process(frames[3].xyz)
+    assert fit.searched and fit.reason == "first frame" and not fit.adopted
+
+
+def test_without_an_executor_the_search_runs_at_once_and_is_taken_next_frame(frames):
+    """executor None: the wanted search runs on the frame that wants it; the next frame adopts it."""
+    finder = lf.BackgroundSearchFinder(lf.LocalFitConfig(search_period=2))
+    finder.process(frames[0].xyz)
+    finder.process(frames[1].xyz)
+    wants = finder.process(frames[2].xyz)
+    assert wants.reason == "periodic" and not wants.searched and "search" in wants.timings
+    nxt = finder.process(frames[3].xyz)
+    assert nxt.adopted and not nxt.reason
+
+
+def test_search_period_one_searches_every_frame_on_the_frame(frames, manual_executor):
+    """search_period 1 means every frame's cans come from the full search: nothing is handed over."""
+    executor = manual_executor
+    finder = lf.BackgroundSearchFinder(lf.LocalFitConfig(search_period=1), executor=executor)
+    fits = [finder.process(f.xyz) for f in frames[:3]]
+    assert all(f.searched for f in fits) and executor.calls == []
 
 
 def test_local_finder_without_a_table_raises_and_forgets():
