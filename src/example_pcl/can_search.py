@@ -40,6 +40,7 @@ Lying cans are not looked for yet: their side is no circle from above, so they a
 as upright cans (CylinderHit and Can can carry a horizontal axis for when they are).
 """
 from dataclasses import dataclass, field
+from functools import partial
 from typing import List, Optional
 
 import numpy as np
@@ -66,6 +67,10 @@ class CylinderSearchConfig:
     sticks out at most this far; max_handle_arc (rad), min_handle_points. min_hidden_arc (rad): a
     side seen over less than the criterion's min_arc but at least this is still a can when an
     object in front hides the rest.
+    robust_k, robust_min_scale (m), min_outliers: the least-squares circle is refitted by Tukey's
+    biweight (geometry.fit_circle_robust, cut-off robust_k x scale, the scale at least
+    robust_min_scale) and replaced when at least min_outliers side points lie beyond the cut-off
+    (another surface touching the can, not noise).
     seed: of the RANSAC sampling (the result is the same for the same cloud).
     """
 
@@ -90,6 +95,9 @@ class CylinderSearchConfig:
     max_handle_arc: float = 1.3
     min_handle_points: int = 8
     min_hidden_arc: float = 1.0
+    robust_k: float = 4.685
+    robust_min_scale: float = 0.0005
+    min_outliers: int = 3
     seed: int = 0
 
     def validate(self):
@@ -390,6 +398,7 @@ def verify(free, cx, cy, r, ctx):
                                            tol=c.fit_tolerance, min_inliers=c.min_fit_points, max_shift=r)
     except PerceptionError as e:
         return None, f"no circle fits the side ({str(e).split(';')[0]})", None
+    cx, cy, r, cutoff = _robust_refit(xy, cx, cy, r, r_eps, ctx)
     if not c.min_radius <= r <= c.max_radius:
         return None, (f"radius {1e3 * r:.1f} mm outside [{1e3 * c.min_radius:.0f}, {1e3 * c.max_radius:.0f}] mm"
                       ), claim()
@@ -399,7 +408,8 @@ def verify(free, cx, cy, r, ctx):
     x, y, z = pts[:, 0], pts[:, 1], pts[:, 2]
     dist = np.hypot(x - cx, y - cy)
     in_run = (z >= z_lo) & (z < z_end)
-    side = (np.abs(dist - r) <= r_eps) & _facing(x, y, cx, cy, r, ctx) & in_run
+    # The robust fit's outliers are another surface's points, not the can's side.
+    side = (np.abs(dist - r) <= min(r_eps, cutoff)) & _facing(x, y, cx, cy, r, ctx) & in_run
     n_side = int(np.count_nonzero(side))
     if n_side < c.min_fit_points:
         return None, f"{n_side} points on the fitted circle (min {c.min_fit_points})", None
@@ -440,6 +450,46 @@ def verify(free, cx, cy, r, ctx):
                       height=height, rms_error=rms, arc_coverage=arc, n_points=len(mine), n_fit_points=n_side,
                       shape_error=shape, support=support, base_seen=base_seen, indices=mine)
     return hit, None, None
+
+
+def _robust_refit(xy, cx, cy, r, r_eps, ctx):
+    """The least-squares circle (cx, cy, r) of the side points xy (plane frame, m) checked for
+    another surface: (cx, cy, r, cutoff).
+
+    A box face or a neighbour can touching the can lies within r_eps of its circle near the contact
+    and pulls a least-squares fit by millimetres. Tukey's biweight from the least-squares circle
+    finds such points as outliers (beyond robust_k x scale, which noise at that scale almost never
+    reaches); with at least min_outliers of them the biweight fit replaces the least-squares one,
+    started also from the middle half of the visible arc (away from the contacts at its ends, which
+    a start biased toward the neighbour may never leave), keeping the start of least biweight
+    loss. cutoff: the residual (m) beyond which a point is no side point (inf when the
+    least-squares circle stands)."""
+    c, s = ctx.config, ctx.search
+    fit = partial(g.fit_circle_robust, xy, r_eps=r_eps, k=s.robust_k, min_scale=s.robust_min_scale,
+                  max_iterations=c.fit_iterations, tol=c.fit_tolerance)
+    try:
+        fits = [fit((cx, cy), r)]
+    except PerceptionError:
+        return cx, cy, r, np.inf
+    fx, fy, fr, scale = fits[0]
+    if np.count_nonzero(np.abs(np.hypot(xy[:, 0] - fx, xy[:, 1] - fy) - fr) > s.robust_k * scale) < s.min_outliers:
+        return cx, cy, r, np.inf  # nothing but noise: least squares is the better estimate
+    on = np.flatnonzero(np.abs(np.hypot(xy[:, 0] - cx, xy[:, 1] - cy) - r) <= r_eps)
+    angle = np.arctan2(xy[on, 1] - cy, xy[on, 0] - cx)
+    order = np.argsort(angle)
+    a = angle[order]
+    gaps = np.append(np.diff(a), a[0] + 2 * np.pi - a[-1])
+    order = np.roll(order, -((int(np.argmax(gaps)) + 1) % len(a)))  # from the widest gap: the arc in order
+    middle = on[order[len(order) // 4: len(order) - len(order) // 4]]
+    try:
+        mx, my, mr = g.fit_circle_geometric(xy[middle], (cx, cy), r, r_eps, max_iterations=c.fit_iterations,
+                                            tol=c.fit_tolerance, min_inliers=3, max_shift=r)
+        fits.append(fit((mx, my), mr))
+    except PerceptionError:
+        pass
+    cutoff = s.robust_k * min(f[3] for f in fits)
+    fx, fy, fr, scale = min(fits, key=lambda f: g.biweight_loss(xy, f[0], f[1], f[2], cutoff))
+    return fx, fy, fr, s.robust_k * scale
 
 
 def _toward_sensor(cx, cy, ctx):

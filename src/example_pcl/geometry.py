@@ -602,3 +602,61 @@ def fit_circle_geometric(xy, c0, r0, r_eps, max_iterations=50, tol=1e-6, min_inl
     if n < min_inliers:
         raise PerceptionError(f"only {n} point(s) lie within r_eps = {r_eps} m of the fitted circle")
     return float(a + c0[0]), float(b + c0[1]), float(r)
+
+
+def fit_circle_robust(xy, c0, r0, r_eps, k=4.685, min_scale=5e-4, max_iterations=20, tol=1e-6, max_shift=None):
+    """A circle by Tukey's biweight M-estimator (iteratively reweighted Gauss-Newton) from (c0, r0):
+    (cx, cy, r, scale) in metres.
+
+    Points of another surface near the circle (a box face or a neighbour can touching the can)
+    pull a least-squares fit; the biweight gives points beyond k x scale no weight at all. The
+    scale is re-estimated every iteration as 1.4826 x the median absolute residual of the points
+    within r_eps (m), floored at min_scale (m: depth quantization can make the median vanish).
+    xy: float64 (N, 2) or (N, 3) finite points (m, plane frame; z ignored). Raises PerceptionError
+    when fewer than 3 points keep a weight or the centre moves more than max_shift (default r0).
+    """
+    if not (r_eps > 0 and r0 > 0 and k > 0 and min_scale > 0):
+        raise PerceptionError(f"r_eps, r0, k and min_scale must be > 0, got {r_eps}, {r0}, {k}, {min_scale}")
+    xy = _xy(xy)
+    c0 = np.asarray(c0, dtype=float).reshape(2)
+    u, v = xy[:, 0] - c0[0], xy[:, 1] - c0[1]
+    a = b = 0.0
+    r = float(r0)
+    max_shift = r0 if max_shift is None else max_shift
+    scale = min_scale
+    rows = np.empty((4, len(xy)))
+    for _ in range(int(max_iterations)):
+        du, dv = u - a, v - b
+        d = np.maximum(np.sqrt(du * du + dv * dv), 1e-12)
+        res = d - r
+        size = np.abs(res)
+        near = size[size <= r_eps]
+        if len(near) < 3:
+            raise PerceptionError(f"only {len(near)} point(s) within r_eps = {r_eps} m of the circle")
+        half = len(near) // 2
+        near.partition(half)  # the median by a partial sort (upper median for an even count)
+        scale = max(1.4826 * float(near[half]), min_scale)
+        t = size * (1.0 / (k * scale))
+        w = np.maximum(1.0 - t * t, 0.0) ** 2
+        if np.count_nonzero(w) < 3:
+            raise PerceptionError("fewer than 3 points keep a weight in the robust circle fit")
+        rows[0], rows[1], rows[2], rows[3] = du / d, dv / d, 1.0, res  # -J and the residual
+        sums = (rows * w) @ rows.T
+        try:
+            step = np.linalg.solve(sums[:3, :3] + 1e-12 * np.eye(3), sums[:3, 3])
+        except np.linalg.LinAlgError:
+            raise PerceptionError("the robust circle fit is singular (the points are collinear)") from None
+        a, b, r = a + step[0], b + step[1], r + step[2]
+        if not (np.isfinite((a, b, r)).all() and np.hypot(a, b) <= max_shift and r > 0):
+            raise PerceptionError(f"the robust circle fit diverged (centre moved more than {max_shift} m)")
+        if np.sqrt(step @ step) < tol:
+            break
+    return float(a + c0[0]), float(b + c0[1]), float(r), scale
+
+
+def biweight_loss(xy, cx, cy, r, cutoff):
+    """Tukey's biweight loss sum (each point 0..1) of points about a circle, with cutoff (m) the
+    residual beyond which a point costs 1: compares circles fitted by fit_circle_robust at one scale."""
+    xy = _xy(xy)
+    t = np.minimum(np.abs(np.hypot(xy[:, 0] - cx, xy[:, 1] - cy) - r) / cutoff, 1.0)
+    return float(np.sum(1.0 - (1.0 - t * t) ** 3))

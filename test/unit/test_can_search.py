@@ -227,3 +227,23 @@ def test_lean_circle_fit_matches_fit_cylinder():
     fit = g.fit_cylinder(xy, (0.104, 0.297), 0.031, 0.006, max_iterations=20, tol=1e-5, min_inliers=30)
     lean = g.fit_circle_geometric(xy, (0.104, 0.297), 0.031, 0.006, max_iterations=20, tol=1e-5, min_inliers=30)
     np.testing.assert_allclose(lean, (fit.cx, fit.cy, fit.radius), atol=1e-9)
+
+
+def test_robust_circle_fit_ignores_a_face_touching_the_circle():
+    """A box face tangent to the circle near one end of the arc pulls the least-squares circle by
+    millimetres; the biweight circle started there comes back to the can (within 0.5 mm) and its scale
+    is the noise's."""
+    from example_pcl import geometry as g
+
+    rng = np.random.default_rng(6)
+    r, noise = 0.045, 0.0004
+    angle = rng.uniform(-2.6, 0.3, 300)
+    arc = np.c_[r * np.cos(angle), r * np.sin(angle)]
+    # The face x = r touches the circle at angle 0, seen from y = -0.02 to 0.03 (beyond the arc's end).
+    face = np.c_[np.full(120, r), rng.uniform(-0.02, 0.03, 120)]
+    xy = np.r_[arc, face] + rng.normal(0.0, noise, (420, 2))
+    least = g.fit_circle_geometric(xy, (0.0, 0.0), r, 0.006, max_iterations=50, tol=1e-7, min_inliers=30)
+    assert np.hypot(*least[:2]) > 0.002  # the drift the robust fit is for
+    cx, cy, fitted, scale = g.fit_circle_robust(xy, least[:2], least[2], 0.006, max_iterations=50, tol=1e-7)
+    assert np.hypot(cx, cy) < 0.0005 and abs(fitted - r) < 0.0005
+    assert 0.5 * noise < scale < 3 * noise
