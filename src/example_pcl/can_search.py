@@ -16,7 +16,8 @@ and measured figures are in docs/can_search.md; in short, per cluster and round:
    each band still has points on the circle (at least ``band_fraction`` of the start band's) and
    no more inside the disc than on it. The can spans that run; its top is the lid above it.
 3. **Fit and side criterion.** Levenberg-Marquardt (geometry.fit_cylinder) on the run's points
-   on the circle, then auto_finder's criterion: radius, inlier fraction, rms residual, shape error
+   on the circle, refitted by Tukey's biweight when that finds another surface's points among them
+   (a box or can touching it; _robust_refit), then auto_finder's criterion: radius, inlier fraction, rms residual, shape error
    (flat faces of boxes and prisms), visible arc, and at least min_can_height explained by the
    one circle (a bowl's radius changes with height).
 4. **What it stands on.** Base within ``table_gap`` of the table: on the table, base seen.
@@ -487,6 +488,10 @@ def _robust_refit(xy, cx, cy, r, r_eps, ctx):
         fits.append(fit((mx, my), mr))
     except PerceptionError:
         pass
+    # A circle more than 2 r_eps from the least-squares one is no correction for a neighbour's points.
+    fits = [f for f in fits if np.hypot(f[0] - cx, f[1] - cy) <= 2 * r_eps]
+    if not fits:
+        return cx, cy, r, np.inf
     cutoff = s.robust_k * min(f[3] for f in fits)
     fx, fy, fr, scale = min(fits, key=lambda f: g.biweight_loss(xy, f[0], f[1], f[2], cutoff))
     return fx, fy, fr, s.robust_k * scale

@@ -514,6 +514,14 @@ def shape_error(xy, cx, cy, radius, bins):
     return float(np.sqrt(np.mean(means ** 2)))
 
 
+def _from_start(xy, c0):
+    """(xy, c0, u, v): the points (N, 2), the start centre c0 (2,) and the points' coordinates relative
+    to it (m), so far-away frames keep their precision in the circle fits."""
+    xy = _xy(xy)
+    c0 = np.asarray(c0, dtype=float).reshape(2)
+    return xy, c0, xy[:, 0] - c0[0], xy[:, 1] - c0[1]
+
+
 def fit_circles_algebraic(xy, weights=None):
     """fit_circle_algebraic (Kasa) of many subsets of the same points at once, by its normal equations.
 
@@ -559,9 +567,7 @@ def fit_circle_geometric(xy, c0, r0, r_eps, max_iterations=50, tol=1e-6, min_inl
     """
     if not (r_eps > 0 and r0 > 0):
         raise PerceptionError(f"r_eps and the radius must be > 0 m, got {r_eps}, {r0}")
-    xy = _xy(xy)
-    c0 = np.asarray(c0, dtype=float).reshape(2)
-    u, v = xy[:, 0] - c0[0], xy[:, 1] - c0[1]
+    xy, c0, u, v = _from_start(xy, c0)
     a = b = 0.0
     r = float(r0)
     max_shift = 3 * r0 if max_shift is None else max_shift
@@ -617,9 +623,7 @@ def fit_circle_robust(xy, c0, r0, r_eps, k=4.685, min_scale=5e-4, max_iterations
     """
     if not (r_eps > 0 and r0 > 0 and k > 0 and min_scale > 0):
         raise PerceptionError(f"r_eps, r0, k and min_scale must be > 0, got {r_eps}, {r0}, {k}, {min_scale}")
-    xy = _xy(xy)
-    c0 = np.asarray(c0, dtype=float).reshape(2)
-    u, v = xy[:, 0] - c0[0], xy[:, 1] - c0[1]
+    xy, c0, u, v = _from_start(xy, c0)
     a = b = 0.0
     r = float(r0)
     max_shift = r0 if max_shift is None else max_shift
