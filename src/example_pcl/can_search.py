@@ -6,14 +6,18 @@ one. Everything here is in the *plane frame* (z up from the table, metres). The 
 and measured figures are in docs/can_search.md; in short, per cluster and round:
 
 1. **Hypotheses.** Circles through triplets of side points seen from above (RANSAC: each triplet
-   an anchor and two points within a can's diameter of it), radius within [min_radius,
-   max_radius]; the ones with most points within r_eps are verified, best first.
+   an anchor and two points within the diameter of a can of a radius drawn per anchor), radius
+   within [min_radius, max_radius], from a pool drawn with weights that favour walls (a side piles
+   many points into one ``wall_cell`` square seen from above, a lid one layer). The ones with most
+   pool points within r_eps on their half facing the sensor are verified, best first, each sharing
+   at most half its points with one taken before (circles through one box face count once).
 2. **Grow along the axis.** The points are split into height bands (``band_height``); starting
    from the band where the circle holds most points, the run of bands grows down and up while
    each band still has points on the circle (at least ``band_fraction`` of the start band's) and
    no more inside the disc than on it. The can spans that run; its top is the lid above it.
 3. **Fit and side criterion.** Levenberg-Marquardt (geometry.fit_cylinder) on the run's points
-   on the circle, then auto_finder's criterion: radius, inlier fraction, rms residual, shape error
+   on the circle, refitted by Tukey's biweight when that finds another surface's points among them
+   (a box or can touching it; _robust_refit), then auto_finder's criterion: radius, inlier fraction, rms residual, shape error
    (flat faces of boxes and prisms), visible arc, and at least min_can_height explained by the
    one circle (a bowl's radius changes with height).
 4. **What it stands on.** Base within ``table_gap`` of the table: on the table, base seen.
@@ -27,11 +31,17 @@ and measured figures are in docs/can_search.md; in short, per cluster and round:
    arc, that do not reach down to the support - a mug.
 6. The can's points are taken out of the cluster and the next round looks for another one.
 
+Speed: a verification looks only at the free points near its circle (cropped per round from the
+cluster's, height bands computed once per cluster), fits by geometry.fit_circles_algebraic and
+fit_circle_geometric (fit_cylinder's objective with less overhead) and takes percentiles by
+partial sorts; figures in docs/can_search.md.
+
 What no hypothesis claims stays a rejected object with the reason of its best hypothesis.
 Lying cans are not looked for yet: their side is no circle from above, so they are never reported
 as upright cans (CylinderHit and Can can carry a horizontal axis for when they are).
 """
 from dataclasses import dataclass, field
+from functools import partial
 from typing import List, Optional
 
 import numpy as np
@@ -45,7 +55,8 @@ class CylinderSearchConfig:
     """Parameters of the search inside clusters (module docstring). Lengths in metres.
 
     grid_step (px): the search sees every grid_step-th pixel in each direction; hypotheses:
-    triplets drawn per round; pool_points: at most this many points score them; verify: the best
+    triplets drawn per round; pool_points: at most this many points score them, drawn with weights
+    that favour walls (points per wall_cell x wall_cell square seen from above); verify: the best
     so many distinct hypotheses are verified per round; fit_points: at most this many side points
     (evenly subsampled) go into the Levenberg-Marquardt fit; max_rounds: per cluster.
     band_height, band_fraction, min_band_points, max_band_gap (bands): the growth along the axis.
@@ -57,12 +68,17 @@ class CylinderSearchConfig:
     sticks out at most this far; max_handle_arc (rad), min_handle_points. min_hidden_arc (rad): a
     side seen over less than the criterion's min_arc but at least this is still a can when an
     object in front hides the rest.
+    robust_k, robust_min_scale (m), min_outliers: the least-squares circle is refitted by Tukey's
+    biweight (geometry.fit_circle_robust, cut-off robust_k x scale, the scale at least
+    robust_min_scale) and replaced when at least min_outliers side points lie beyond the cut-off
+    (another surface touching the can, not noise).
     seed: of the RANSAC sampling (the result is the same for the same cloud).
     """
 
     grid_step: int = 2
     hypotheses: int = 48
     pool_points: int = 200
+    wall_cell: float = 0.005
     verify: int = 3
     fit_points: int = 250
     max_rounds: int = 6
@@ -80,11 +96,14 @@ class CylinderSearchConfig:
     max_handle_arc: float = 1.3
     min_handle_points: int = 8
     min_hidden_arc: float = 1.0
+    robust_k: float = 4.685
+    robust_min_scale: float = 0.0005
+    min_outliers: int = 3
     seed: int = 0
 
     def validate(self):
         """Raises PerceptionError naming the first value that makes no sense."""
-        for name in ("grid_step", "hypotheses", "pool_points", "verify", "max_rounds", "band_height",
+        for name in ("grid_step", "hypotheses", "pool_points", "wall_cell", "verify", "max_rounds", "band_height",
                      "min_band_points", "open_depth", "handle_reach"):
             if not getattr(self, name) > 0:
                 raise PerceptionError(f"CylinderSearchConfig.{name} must be > 0, got {getattr(self, name)}")
@@ -144,44 +163,66 @@ def circumcircles(a, b, c):
     return ux + a[:, 0], uy + a[:, 1], r
 
 
-def circle_hypotheses(xy, n, rng, min_radius, max_radius):
+def circle_hypotheses(xy, n, rng, min_radius, max_radius, partners=8):
     """Up to n circles (cx, cy, r) through triplets of the points xy (float64 (M, 2), m): each an
-    anchor and two points within 2 max_radius of it (a can's diameter), radius within range."""
+    anchor and two points near it, radius within range.
+
+    Near: within the diameter of a can of a radius drawn per anchor (log-uniform in [min_radius,
+    max_radius]), so a small can beside a box gets triplets of its own points as often as a large
+    one. The two are the first near ones of `partners` points drawn within that reach of the anchor
+    in x (the points sorted by x): no (n, M) distance matrix."""
     m = len(xy)
     if m < 3:
         return np.empty(0), np.empty(0), np.empty(0)
+    order = np.argsort(xy[:, 0], kind="stable")
+    sx = xy[order, 0]
     anchors = rng.integers(m, size=n)
-    d2 = ((xy[anchors, None, :] - xy[None, :, :]) ** 2).sum(axis=2)  # (n, m)
-    near = (d2 <= (2 * max_radius) ** 2) & (d2 >= (0.25 * min_radius) ** 2)
-    # Two random near points per anchor: the two largest random keys among the near ones.
-    keys = np.where(near, rng.random(d2.shape), -1.0)
-    two = np.argpartition(keys, m - 2, axis=1)[:, -2:]
-    ok = keys[np.arange(n)[:, None], two].min(axis=1) >= 0
+    reach = 2 * np.exp(rng.uniform(np.log(min_radius), np.log(max_radius), size=n))
+    lo = np.searchsorted(sx, xy[anchors, 0] - reach)
+    hi = np.searchsorted(sx, xy[anchors, 0] + reach, side="right")
+    drawn = order[lo[:, None] + (rng.random((n, partners)) * (hi - lo)[:, None]).astype(np.int64)]
+    d2 = ((xy[drawn] - xy[anchors, None, :]) ** 2).sum(axis=2)  # (n, partners)
+    near = (d2 <= (reach ** 2)[:, None]) & (d2 >= (0.25 * min_radius) ** 2)
+    first = np.argsort(~near, axis=1, kind="stable")[:, :2]
+    rows = np.arange(n)[:, None]
+    ok = near[rows, first].all(axis=1)
     if not ok.any():
         return np.empty(0), np.empty(0), np.empty(0)
-    anchors, two = anchors[ok], two[ok]
-    cx, cy, r = circumcircles(xy[anchors], xy[two[:, 0]], xy[two[:, 1]])
+    two = drawn[rows, first][ok]
+    cx, cy, r = circumcircles(xy[anchors[ok]], xy[two[:, 0]], xy[two[:, 1]])
     keep = (r >= min_radius) & (r <= max_radius)
     return cx[keep], cy[keep], r[keep]
 
 
-def best_circles(xy, cx, cy, r, eps, count):
-    """The `count` circles with most points of xy within eps, distinct (centres further apart than
-    half the smaller radius): list of (cx, cy, r, inliers)."""
+def best_circles(xy, cx, cy, r, eps, count, sensor=None, max_overlap=0.5):
+    """The `count` circles with most points of xy within eps, distinct: at most max_overlap of the
+    smaller one's points shared with one taken before (so circles through one box face count once,
+    while a can beside it, or a cup of another radius on it, is another): list of (cx, cy, r,
+    inliers). With the sensor's (x, y) given, only points on the half of a circle facing it count
+    (an upright can's side seen; a face seen across a circle's far half is no can)."""
     if len(cx) == 0:
         return []
-    dist = np.hypot(xy[None, :, 0] - cx[:, None], xy[None, :, 1] - cy[:, None])
-    score = (np.abs(dist - r[:, None]) <= eps).sum(axis=1)
-    out = []
+    dx, dy = xy[None, :, 0] - cx[:, None], xy[None, :, 1] - cy[:, None]
+    d2 = dx * dx + dy * dy
+    lo2 = np.maximum(r - eps, 0.0) ** 2
+    members = (d2 >= lo2[:, None]) & (d2 <= ((r + eps) ** 2)[:, None])
+    if sensor is not None:
+        fx, fy = sensor[0] - cx, sensor[1] - cy
+        norm = np.maximum(np.hypot(fx, fy), 1e-9)
+        members &= (dx * (fx / norm)[:, None] + dy * (fy / norm)[:, None]) > -0.25 * r[:, None]
+    score = members.sum(axis=1)
+    out, taken = [], []
     for k in np.argsort(-score, kind="stable"):
         if score[k] < 3:
             break
-        # Distinct: another centre, or another radius about the same centre (a cup on a can).
-        if all(np.hypot(cx[k] - o[0], cy[k] - o[1]) > 0.5 * min(r[k], o[2]) or abs(r[k] - o[2]) > 2 * eps
-               for o in out):
-            out.append((float(cx[k]), float(cy[k]), float(r[k]), int(score[k])))
-            if len(out) == count:
-                break
+        if taken:
+            shared = (members[taken] & members[k]).sum(axis=1)
+            if (shared > max_overlap * np.minimum(score[taken], score[k])).any():
+                continue
+        taken.append(k)
+        out.append((float(cx[k]), float(cy[k]), float(r[k]), int(score[k])))
+        if len(out) == count:
+            break
     return out
 
 
@@ -236,46 +277,86 @@ class _Context:
     found: list  # CylinderHits found so far (supports for stacked cans)
 
 
+class _Free:
+    """The points of a cluster not taken yet, in one round: their indices into the cluster's points,
+    their coordinates (float64 (F, 3), plane frame, m), height bands and median height. Computed
+    once per round and cropped around each hypothesis, so a verification looks at the points near
+    its circle only."""
+
+    def __init__(self, points, bands, idx):
+        self.idx, self.points, self.bands = idx, points[idx], bands[idx]
+        self.x, self.y, self.z = self.points[:, 0], self.points[:, 1], self.points[:, 2]
+        self.median_z = _percentile(self.z, 50)
+
+    def near(self, cx, cy, half):
+        """Positions (into this round's arrays) of the points within a square of half side `half` (m)
+        about (cx, cy)."""
+        return np.flatnonzero((np.abs(self.x - cx) <= half) & (np.abs(self.y - cy) <= half))
+
+    def disc(self, cx, cy, radius, z_lo, z_hi):
+        """Indices into the cluster of the points within `radius` of the axis (cx, cy), between heights
+        z_lo and z_hi (m)."""
+        return self.idx[((self.x - cx) ** 2 + (self.y - cy) ** 2 <= radius * radius) & (self.z >= z_lo)
+                        & (self.z <= z_hi)]
+
+
+def _percentile(values, q):
+    """np.percentile(values, q) (linear interpolation) by a partial sort, at a fraction of its cost."""
+    n = len(values)
+    pos = q / 100 * (n - 1)
+    lo = int(pos)
+    hi = min(lo + 1, n - 1)
+    part = np.partition(values, (lo, hi))
+    return float(part[lo] + (pos - lo) * (part[hi] - part[lo]))
+
+
 def _sigma(ctx, center):
     return ctx.config.noise_coefficient * float(np.sum((np.asarray(center) - ctx.sensor) ** 2))
 
 
-def verify(points, cx, cy, r, ctx):
-    """One circle hypothesis against a cluster's points (float64 (M, 3), plane frame):
-    (CylinderHit whose .indices is the mask of its points, None, None), or (None, reason, claim):
-    claim the mask of the points of a round object that is no can (a tin, cup, bowl), else None."""
+def _facing(x, y, cx, cy, r, ctx):
+    """The points on the half of the circle (cx, cy, r) that faces the sensor (and a quarter radius
+    beyond): the only half of an upright can's side a sensor sees."""
+    front = _toward_sensor(cx, cy, ctx)
+    return (x - cx) * front[0] + (y - cy) * front[1] > -0.25 * r
+
+
+def verify(free, cx, cy, r, ctx):
+    """One circle hypothesis against a cluster's free points (_Free, plane frame):
+    (CylinderHit whose .indices index the cluster's points, None, None), or (None, reason, claim):
+    claim the indices of the points of a round object that is no can (a tin, cup, bowl), else None."""
     c, s = ctx.config, ctx.search
-    z = points[:, 2]
-    center3 = np.array([cx, cy, float(np.median(z))])
-    sigma = _sigma(ctx, center3)
+    sigma = _sigma(ctx, (cx, cy, free.median_z))
     r_eps = max(c.r_eps, c.r_eps_sigmas * sigma)
+    # Every test before the fit looks within support_reach of the circle, which the refinement
+    # below moves by less than 2 r_eps (and widens by less than 2 r_eps).
+    near = free.near(cx, cy, r + 4 * r_eps + s.support_reach)
+    pts, bands = free.points[near], free.bands[near]
+    x, y, z = pts[:, 0], pts[:, 1], pts[:, 2]
     # The triplet's circle is only as good as three noisy points: one linear (Kasa) fit to the
     # points near it, on its near half, before the bands judge it.
-    dist = np.hypot(points[:, 0] - cx, points[:, 1] - cy)
-    close = (np.abs(dist - r) <= r_eps) & ((points[:, :2] - (cx, cy)) @ _toward_sensor(cx, cy, ctx) > -0.25 * r)
-    if close.sum() >= c.min_fit_points:
-        try:
-            kx, ky, kr = g.fit_circle_algebraic(points[close, :2])
-            if abs(kr - r) < 2 * r_eps and np.hypot(kx - cx, ky - cy) < 2 * r_eps:
-                cx, cy, r = kx, ky, kr
-                dist = np.hypot(points[:, 0] - cx, points[:, 1] - cy)
-        except PerceptionError:
-            pass
+    dist = np.hypot(x - cx, y - cy)
+    close = (np.abs(dist - r) <= r_eps) & _facing(x, y, cx, cy, r, ctx)
+    if np.count_nonzero(close) >= c.min_fit_points:
+        kx, ky, kr = (float(v[0]) for v in g.fit_circles_algebraic(pts[close]))
+        if abs(kr - r) < 2 * r_eps and np.hypot(kx - cx, ky - cy) < 2 * r_eps:
+            cx, cy, r = kx, ky, kr
+            dist = np.hypot(x - cx, y - cy)
     # An upright can shows the sensor its near half only: points on the circle's far half are the
     # inside of something hollow (a cup's far wall), never a can's side.
-    facing = (points[:, :2] - (cx, cy)) @ _toward_sensor(cx, cy, ctx) > -0.25 * r
+    facing = _facing(x, y, cx, cy, r, ctx)
     residual = dist - r
     on = (np.abs(residual) <= r_eps) & facing
     inside = dist < r - r_eps
-    bands = np.minimum((z / s.band_height).astype(np.int64), int(c.max_height / s.band_height))
-    nb = int(bands.max()) + 1
+    nb = int(c.max_height / s.band_height) + 1
     band_on = np.bincount(bands[on], minlength=nb)
     band_inside = np.bincount(bands[inside], minlength=nb)
     # A band is on the circle when its points near it are centred on it, not offset (a cup a few
     # millimetres wider standing on the can).
-    near = (np.abs(residual) <= 2 * r_eps) & facing
+    near_circle = (np.abs(residual) <= 2 * r_eps) & facing
     with np.errstate(invalid="ignore", divide="ignore"):
-        offset = np.bincount(bands[near], weights=residual[near], minlength=nb) / np.bincount(bands[near], minlength=nb)
+        offset = (np.bincount(bands[near_circle], weights=residual[near_circle], minlength=nb)
+                  / np.bincount(bands[near_circle], minlength=nb))
     band_on = np.where(np.abs(offset) <= 0.5 * r_eps, band_on, 0)
     run = band_run(band_on, band_inside, s.band_fraction, s.min_band_points, s.max_band_gap)
     if run is None:
@@ -284,88 +365,136 @@ def verify(points, cx, cy, r, ctx):
     # A surface the can stands on (a tin's lid, a box's top) adds a band crowded with points on
     # the circle and beyond it: the side starts above it.
     band_out = np.bincount(bands[(dist > r + r_eps) & (dist <= r + s.support_reach)], minlength=nb)
-    crowded = 1.3 * np.median(band_on[lo:hi + 1])
+    crowded = 1.3 * _percentile(band_on[lo:hi + 1], 50)
     while lo < hi and band_on[lo] > crowded and band_out[lo] >= 0.3 * band_on[lo]:
         lo += 1
     z_lo, z_hi = lo * s.band_height, (hi + 1) * s.band_height
     # The top: the lid just above the run (99th percentile of the disc's points up to 2 bands above);
     # the side ends top_margin (and 3 sigma) below it, so the lid's rim is no side point.
-    disc = (dist <= r + r_eps) & (z >= z_lo) & (z < z_hi + 2 * s.band_height)
-    top = float(np.percentile(z[disc], 99))
-    in_run = (z >= z_lo) & (z < min(z_hi, top - c.top_margin - 3 * sigma))
-    side = on & in_run
-    if side.sum() < c.min_fit_points:
-        return None, f"{int(side.sum())} points on the circle (min {c.min_fit_points})", None
-    xy = points[side, :2]
-    # A linear (Kasa) circle first: cheap, and it already says when the radius is no can's.
-    try:
-        kx, ky, kr = g.fit_circle_algebraic(xy)
-    except PerceptionError as e:
-        return None, f"no circle fits the side ({e})", None
+    top = _percentile(z[(dist <= r + r_eps) & (z >= z_lo) & (z < z_hi + 2 * s.band_height)], 99)
+    z_end = min(z_hi, top - c.top_margin - 3 * sigma)
+    side = on & (z >= z_lo) & (z < z_end)
+    n_side = int(np.count_nonzero(side))
+    if n_side < c.min_fit_points:
+        return None, f"{n_side} points on the circle (min {c.min_fit_points})", None
 
-    def claim(x=None, y=None, radius=None):
+    def claim(x0=None, y0=None, radius=None):
         """The points of a round object that is no can: its disc over the run (so no other
         hypothesis is tried on it)."""
-        x, y, radius = (cx, cy, r) if x is None else (x, y, radius)
-        d = np.hypot(points[:, 0] - x, points[:, 1] - y)
-        return (d <= radius + r_eps) & (z >= z_lo - s.band_height) & (z <= z_hi + s.band_height)
+        x0, y0, radius = (cx, cy, r) if x0 is None else (x0, y0, radius)
+        return free.disc(x0, y0, radius + r_eps, z_lo - s.band_height, z_hi + s.band_height)
 
+    # A linear (Kasa) circle first: cheap, and it already says when the radius is no can's.
+    kx, ky, kr = (float(v[0]) for v in g.fit_circles_algebraic(pts[side]))
+    if not np.isfinite(kr):
+        return None, "no circle fits the side (the points are collinear)", None
     if not c.min_radius - r_eps <= kr <= c.max_radius + r_eps:
         return None, (f"radius {1e3 * kr:.1f} mm outside [{1e3 * c.min_radius:.0f}, {1e3 * c.max_radius:.0f}] mm"
                       ), claim(kx, ky, kr)
+    xy = pts[side, :2]
     if len(xy) > s.fit_points:
         xy = xy[:: int(np.ceil(len(xy) / s.fit_points))]
     try:
-        fit = g.fit_cylinder(xy, (cx, cy), r, r_eps, max_iterations=c.fit_iterations, tol=c.fit_tolerance,
-                             min_inliers=c.min_fit_points, max_shift=r)
+        cx, cy, r = g.fit_circle_geometric(xy, (cx, cy), r, r_eps, max_iterations=c.fit_iterations,
+                                           tol=c.fit_tolerance, min_inliers=c.min_fit_points, max_shift=r)
     except PerceptionError as e:
         return None, f"no circle fits the side ({str(e).split(';')[0]})", None
-    cx, cy, r = fit.cx, fit.cy, fit.radius
+    cx, cy, r, cutoff = _robust_refit(xy, cx, cy, r, r_eps, ctx)
     if not c.min_radius <= r <= c.max_radius:
         return None, (f"radius {1e3 * r:.1f} mm outside [{1e3 * c.min_radius:.0f}, {1e3 * c.max_radius:.0f}] mm"
                       ), claim()
-    dist = np.hypot(points[:, 0] - cx, points[:, 1] - cy)
-    facing = (points[:, :2] - (cx, cy)) @ _toward_sensor(cx, cy, ctx) > -0.25 * r
-    on = (np.abs(dist - r) <= r_eps) & facing
-    side = on & in_run
-    below_rim = dist <= r + r_eps
-    n_side = int(side.sum())
+    # The fit moved the circle: the rest looks within reach of a handle or a support of the new one.
+    near = free.near(cx, cy, r + r_eps + max(2 * s.handle_reach, s.support_reach))
+    pts = free.points[near]
+    x, y, z = pts[:, 0], pts[:, 1], pts[:, 2]
+    dist = np.hypot(x - cx, y - cy)
+    in_run = (z >= z_lo) & (z < z_end)
+    # The robust fit's outliers are another surface's points, not the can's side.
+    side = (np.abs(dist - r) <= min(r_eps, cutoff)) & _facing(x, y, cx, cy, r, ctx) & in_run
+    n_side = int(np.count_nonzero(side))
+    if n_side < c.min_fit_points:
+        return None, f"{n_side} points on the fitted circle (min {c.min_fit_points})", None
     residual = dist[side] - r
-    rms = float(np.sqrt(np.mean(residual ** 2)))
+    rms = float(np.sqrt(residual @ residual / n_side))
     max_rms = max(c.max_rms, c.max_rms_sigmas * sigma)
-    sxy = points[side, :2]
-    shape = g.shape_error(sxy, cx, cy, r, c.shape_bins)
-    arc = g.arc_coverage(sxy, cx, cy)
-    base = float(np.percentile(z[side], 1))
+    sxy = pts[side, :2]
+    base = _percentile(z[side], 1)
     # Inlier fraction of the side below the lid: points inside the disc there are no can's.
-    fraction = n_side / max(int((below_rim & in_run).sum()), 1)
+    fraction = n_side / max(int(np.count_nonzero((dist <= r + r_eps) & in_run)), 1)
     if fraction < c.min_inlier_fraction:
         return None, (f"only {100 * fraction:.0f}% of the side within {1e3 * r_eps:.1f} mm of the circle "
                       f"(min {100 * c.min_inlier_fraction:.0f}%)"), None
     if rms > max_rms:
         return None, f"rms residual {1e3 * rms:.2f} mm > {1e3 * max_rms:.2f} mm", None
+    shape = g.shape_error(sxy, cx, cy, r, c.shape_bins)
     if shape > c.max_shape_error:
         return None, f"shape error {1e3 * shape:.2f} mm > {1e3 * c.max_shape_error:.2f} mm (not round)", None
+    arc = g.arc_coverage(sxy, cx, cy)
     if arc < c.min_arc and not (arc >= s.min_hidden_arc and _in_front(cx, cy, r, base, top, ctx)):
         return None, f"side seen over {arc:.2f} rad < {c.min_arc:.2f} rad", None
     # What it stands on.
-    support, base_seen, base_z = _support(points, cx, cy, r, base, r_eps, sigma, ctx)
+    support, base_seen, base_z, why = _support(pts, cx, cy, r, base, r_eps, sigma, ctx)
     if support is None:
-        return None, (f"its lowest side point is {100 * base:.1f} cm above the table with nothing under it "
-                      "(floats)"), None
+        return None, why, None
     height = top - base_z
     if height < c.min_can_height or top - base < min(c.min_can_height, 0.6 * height):
         return None, (f"one circle explains only {100 * (top - base):.1f} cm of it (min "
                       f"{100 * c.min_can_height:.1f} cm; a bowl's radius changes with height)"), claim()
-    why = (_open_top(points, cx, cy, r, r_eps, base, top, ctx)
-           or _handle(points, cx, cy, dist, r, r_eps, base_z, top, ctx))
+    why = (_open_top(pts[dist <= r + r_eps], cx, cy, r, r_eps, base, top, ctx)
+           or _handle(pts, cx, cy, dist, r, r_eps, base_z, top, ctx))
     if why:
         return None, why, claim()
-    mine = (dist <= r + r_eps) & (z >= base_z - 0.5 * s.band_height) & (z <= top + s.band_height)
+    # On an object, the points within 3 sigma of its surface are the support's.
+    lowest = base_z - 0.5 * s.band_height if support == "table" else base_z + 3 * sigma
+    mine = free.idx[near[(dist <= r + r_eps) & (z >= lowest) & (z <= top + s.band_height)]]
     hit = CylinderHit(base_center=np.array([cx, cy, base_z]), axis=np.array([0.0, 0.0, 1.0]), radius=r,
-                      height=height, rms_error=rms, arc_coverage=arc, n_points=int(mine.sum()), n_fit_points=n_side,
+                      height=height, rms_error=rms, arc_coverage=arc, n_points=len(mine), n_fit_points=n_side,
                       shape_error=shape, support=support, base_seen=base_seen, indices=mine)
     return hit, None, None
+
+
+def _robust_refit(xy, cx, cy, r, r_eps, ctx):
+    """The least-squares circle (cx, cy, r) of the side points xy (plane frame, m) checked for
+    another surface: (cx, cy, r, cutoff).
+
+    A box face or a neighbour can touching the can lies within r_eps of its circle near the contact
+    and pulls a least-squares fit by millimetres. Tukey's biweight from the least-squares circle
+    finds such points as outliers (beyond robust_k x scale, which noise at that scale almost never
+    reaches); with at least min_outliers of them the biweight fit replaces the least-squares one,
+    started also from the middle half of the visible arc (away from the contacts at its ends, which
+    a start biased toward the neighbour may never leave), keeping the start of least biweight
+    loss. cutoff: the residual (m) beyond which a point is no side point (inf when the
+    least-squares circle stands)."""
+    c, s = ctx.config, ctx.search
+    fit = partial(g.fit_circle_robust, xy, r_eps=r_eps, k=s.robust_k, min_scale=s.robust_min_scale,
+                  max_iterations=c.fit_iterations, tol=c.fit_tolerance)
+    try:
+        fits = [fit((cx, cy), r)]
+    except PerceptionError:
+        return cx, cy, r, np.inf
+    fx, fy, fr, scale = fits[0]
+    if np.count_nonzero(np.abs(np.hypot(xy[:, 0] - fx, xy[:, 1] - fy) - fr) > s.robust_k * scale) < s.min_outliers:
+        return cx, cy, r, np.inf  # nothing but noise: least squares is the better estimate
+    on = np.flatnonzero(np.abs(np.hypot(xy[:, 0] - cx, xy[:, 1] - cy) - r) <= r_eps)
+    angle = np.arctan2(xy[on, 1] - cy, xy[on, 0] - cx)
+    order = np.argsort(angle)
+    a = angle[order]
+    gaps = np.append(np.diff(a), a[0] + 2 * np.pi - a[-1])
+    order = np.roll(order, -((int(np.argmax(gaps)) + 1) % len(a)))  # from the widest gap: the arc in order
+    middle = on[order[len(order) // 4: len(order) - len(order) // 4]]
+    try:
+        mx, my, mr = g.fit_circle_geometric(xy[middle], (cx, cy), r, r_eps, max_iterations=c.fit_iterations,
+                                            tol=c.fit_tolerance, min_inliers=3, max_shift=r)
+        fits.append(fit((mx, my), mr))
+    except PerceptionError:
+        pass
+    # A circle more than 2 r_eps from the least-squares one is no correction for a neighbour's points.
+    fits = [f for f in fits if np.hypot(f[0] - cx, f[1] - cy) <= 2 * r_eps]
+    if not fits:
+        return cx, cy, r, np.inf
+    cutoff = s.robust_k * min(f[3] for f in fits)
+    fx, fy, fr, scale = min(fits, key=lambda f: g.biweight_loss(xy, f[0], f[1], f[2], cutoff))
+    return fx, fy, fr, s.robust_k * scale
 
 
 def _toward_sensor(cx, cy, ctx):
@@ -376,10 +505,11 @@ def _toward_sensor(cx, cy, ctx):
 
 
 def _support(points, cx, cy, r, base, r_eps, sigma, ctx):
-    """(support, base_seen, base height) or (None, False, base) when it floats (module docstring)."""
+    """(support, base_seen, base height, "") or (None, False, base, why not) when it floats (module
+    docstring)."""
     c, s = ctx.config, ctx.search
     if base <= c.min_height + s.table_gap + 3 * sigma:
-        return "table", True, 0.0
+        return "table", True, 0.0, ""
     front = _toward_sensor(cx, cy, ctx)
     rel = points[:, :2] - (cx, cy)
     dist = np.hypot(rel[:, 0], rel[:, 1])
@@ -391,15 +521,16 @@ def _support(points, cx, cy, r, base, r_eps, sigma, ctx):
     beside = level & (ahead < 0.5 * r)
     # Or something right under it, narrower than it (the can a wider cup stands on).
     under = (dist <= r + r_eps) & (z >= base - 0.03) & (z <= base - 0.005)
-    if beside.sum() >= s.min_band_points or under.sum() >= s.min_band_points:
-        base_z = float(np.median(z[level])) if beside.sum() >= s.min_band_points else base
+    n_beside = int(np.count_nonzero(beside))
+    if n_beside >= s.min_band_points or np.count_nonzero(under) >= s.min_band_points:
+        base_z = _percentile(z[level], 50) if n_beside >= s.min_band_points else base
         below = "object"
         for other in ctx.found:
             top = other.base_center[2] + other.height
             if (other.upright and np.hypot(cx - other.base_center[0], cy - other.base_center[1]) < other.radius
                     and abs(top - base_z) < 0.02):
                 below = "can"
-        return below, True, base_z
+        return below, True, base_z, ""
     # Something in front, as high as the lowest point seen: the base is hidden behind it.
     st = ctx.standing
     srel = st[:, :2] - (cx, cy)
@@ -407,10 +538,11 @@ def _support(points, cx, cy, r, base, r_eps, sigma, ctx):
     lateral = np.abs(srel[:, 0] * front[1] - srel[:, 1] * front[0])
     occluder = (sahead > r) & (sahead < r + s.occluder_reach) & (lateral < r) & (st[:, 2] >= base - 0.02)
     if occluder.sum() >= s.min_band_points:
-        return "table", False, 0.0
+        return "table", False, 0.0, ""
     if base <= c.min_height + c.max_base_gap:
-        return "table", True, 0.0
-    return None, False, base
+        return "table", True, 0.0, ""
+    return None, False, base, (f"its lowest side point is {100 * base:.1f} cm above the table with nothing "
+                               "under it (floats)")
 
 
 def _in_front(cx, cy, r, z_low, z_high, ctx):
@@ -480,47 +612,61 @@ def _handle(points, cx, cy, dist, r, r_eps, base, top, ctx):
             "support (a mug)")
 
 
+def _wall_sample(points, n, cell, rng):
+    """Positions of up to n of the points (float64 (M, 3), plane frame, m), drawn with weights that
+    favour walls: seen from above, a vertical side piles many points into one `cell` x `cell`
+    square (m), a lid or a box's top only a layer. The hypotheses come from side points."""
+    if len(points) <= n:
+        return np.arange(len(points))
+    cells = np.floor(points[:, :2] / cell).astype(np.int64)
+    cells -= cells.min(axis=0)
+    key = cells[:, 0] * (int(cells[:, 1].max()) + 1) + cells[:, 1]
+    weight = np.bincount(key)[key].astype(float)
+    return np.sort(rng.choice(len(points), size=n, replace=False, p=weight / weight.sum()))
+
+
 def search_cluster(points, ctx):
     """Every can in one cluster: (list of CylinderHit with indices into `points`, list of Rejection).
 
     points: float64 (M, 3), plane frame (m)."""
     c, s = ctx.config, ctx.search
+    # Height bands, once per cluster (points above max_height share the last band).
+    bands = np.minimum((points[:, 2] / s.band_height).astype(np.int64), int(c.max_height / s.band_height))
     free = np.ones(len(points), bool)
     hits, rejections, last = [], [], None
     for _ in range(int(s.max_rounds)):
         idx = np.flatnonzero(free)
         if len(idx) < c.min_fit_points:
             break
-        pool = idx if len(idx) <= s.pool_points else idx[ctx.rng.choice(len(idx), s.pool_points, replace=False)]
-        xy = points[pool, :2]
-        sigma = _sigma(ctx, points[pool].mean(axis=0))
+        this_round = _Free(points, bands, idx)
+        pool = _wall_sample(this_round.points, s.pool_points, s.wall_cell, ctx.rng)
+        xy = this_round.points[pool, :2]
+        sigma = _sigma(ctx, this_round.points[pool].mean(axis=0))
         r_eps = max(c.r_eps, c.r_eps_sigmas * sigma)
         cx, cy, r = circle_hypotheses(xy, s.hypotheses, ctx.rng, c.min_radius, c.max_radius + r_eps)
-        candidates = best_circles(xy, cx, cy, r, r_eps, s.verify)
+        candidates = best_circles(xy, cx, cy, r, r_eps, s.verify, sensor=ctx.sensor)
         if not candidates:
             last = last or ("no circle of a can's radius through its points", None)
             break
         # A circle through a lid or a box's top has its points at one height: no side, not verified.
-        z_pool = points[pool, 2]
+        z_pool = this_round.z[pool]
         candidates = [h for h in candidates
                       if np.ptp(z_pool[np.abs(np.hypot(xy[:, 0] - h[0], xy[:, 1] - h[1]) - h[2]) <= r_eps])
                       >= 0.5 * c.min_can_height]
         progress = False
         for cx0, cy0, r0, _ in candidates:
-            hit, reason, claim = verify(points[idx], cx0, cy0, r0, ctx)
+            hit, reason, claim = verify(this_round, cx0, cy0, r0, ctx)
             if hit is not None:
-                mine = idx[hit.indices]
-                hits.append(_with_indices(hit, mine))
-                ctx.found.append(hits[-1])
-                free[mine] = False
+                hits.append(hit)
+                ctx.found.append(hit)
+                free[hit.indices] = False
                 progress = True
                 break
-            if claim is not None and claim.any():
+            if claim is not None and len(claim):
                 # A round object that is no can (a tin, a cup): named, and not tried again.
-                gone = idx[claim]
-                rejections.append(Rejection(centroid=points[gone].mean(axis=0), n_points=len(gone), reason=reason,
+                rejections.append(Rejection(centroid=points[claim].mean(axis=0), n_points=len(claim), reason=reason,
                                             radius=r0))
-                free[gone] = False
+                free[claim] = False
                 progress = True
                 break
             if last is None:
@@ -533,10 +679,6 @@ def search_cluster(points, ctx):
         rejections.append(Rejection(centroid=points[rest].mean(axis=0) if len(rest) else points.mean(axis=0),
                                     n_points=len(rest), reason=reason, radius=radius))
     return hits, rejections
-
-
-def _with_indices(hit, indices):
-    return CylinderHit(**{**{f: getattr(hit, f) for f in hit.__dataclass_fields__}, "indices": indices})
 
 
 def search(clusters, standing, sensor_plane, config, search_config=None):

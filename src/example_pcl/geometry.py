@@ -538,3 +538,155 @@ def shape_error(xy, cx, cy, radius, bins):
     counts[:longer] += 1
     means = np.add.reduceat(residual[order], np.cumsum(counts) - counts) / counts
     return float(np.sqrt(means @ means / bins))
+
+
+def _from_start(xy, c0):
+    """(xy, c0, u, v): the points (N, 2), the start centre c0 (2,) and the points' coordinates relative
+    to it (m), so far-away frames keep their precision in the circle fits."""
+    xy = _xy(xy)
+    c0 = np.asarray(c0, dtype=float).reshape(2)
+    return xy, c0, xy[:, 0] - c0[0], xy[:, 1] - c0[1]
+
+
+def fit_circles_algebraic(xy, weights=None):
+    """fit_circle_algebraic (Kasa) of many subsets of the same points at once, by its normal equations.
+
+    xy: float64 (N, 2) or (N, 3) points (m, plane frame; z ignored, finite); weights: (K, N) 0/1
+    masks (or weights) choosing K subsets, or None for one subset of all points. Returns (cx, cy, r)
+    float64 (K,) each (m); NaN for a subset of fewer than 3 points or (nearly) collinear ones. One
+    matrix product for all subsets: for searches that refine many circles (can_search).
+    """
+    xy = _xy(xy)
+    mean = xy.sum(axis=0) / max(len(xy), 1)
+    u, v = xy[:, 0] - mean[0], xy[:, 1] - mean[1]  # centred, so far-away frames keep their precision
+    s = u * u + v * v
+    features = np.empty((9, len(xy)))
+    features[0], features[1], features[2], features[3], features[4] = 1.0, u, v, u * u, u * v
+    features[5], features[6], features[7], features[8] = v * v, u * s, v * s, s
+    w = np.ones((1, len(xy))) if weights is None else np.atleast_2d(np.asarray(weights, dtype=float))
+    n, su, sv, suu, suv, svv, sus, svs, ss = features @ w.T
+    # Rows (2u, 2v, 1) (a, b, c) = u^2 + v^2, c = r^2 - a^2 - b^2 (fit_circle_algebraic's system), by
+    # its normal equations (the first two rows halved).
+    A = np.empty((len(n), 3, 3))
+    A[:, 0, 0], A[:, 0, 1], A[:, 0, 2] = 2 * suu, 2 * suv, su
+    A[:, 1, 0], A[:, 1, 1], A[:, 1, 2] = 2 * suv, 2 * svv, sv
+    A[:, 2, 0], A[:, 2, 1], A[:, 2, 2] = 2 * su, 2 * sv, n
+    # Collinear or too few points: singular relative to its scale (n x spread^4).
+    spread = np.maximum(suu + svv, 1e-300)
+    good = (n >= 3) & (np.abs(np.linalg.det(A)) > 1e-12 * np.maximum(n, 1) * spread * spread)
+    A[~good] = np.eye(3)
+    a, bb, c = np.linalg.solve(A, np.stack([sus, svs, ss], axis=1)[..., None])[..., 0].T
+    with np.errstate(invalid="ignore"):
+        r = np.sqrt(c + a * a + bb * bb)
+    nan = np.where(good, 0.0, np.nan)
+    return a + mean[0] + nan, bb + mean[1] + nan, r + nan
+
+
+def fit_circle_geometric(xy, c0, r0, r_eps, max_iterations=50, tol=1e-6, min_inliers=5, max_shift=None):
+    """fit_cylinder's circle (least squares on the radial residuals of the points within r_eps,
+    re-decided every iteration; Levenberg-Marquardt from (c0, r0)) with a fraction of its
+    overhead: (cx, cy, r) in metres. For searches that fit many circles (can_search).
+
+    xy: float64 (N, 2) or (N, 3) finite points (m, plane frame; z ignored). Same stopping rules and
+    errors as fit_cylinder: PerceptionError with fewer than min_inliers inliers or when the centre
+    moves more than max_shift (m; default 3 r0) from c0 or the radius leaves its range.
+    """
+    if not (r_eps > 0 and r0 > 0):
+        raise PerceptionError(f"r_eps and the radius must be > 0 m, got {r_eps}, {r0}")
+    xy, c0, u, v = _from_start(xy, c0)
+    a = b = 0.0
+    r = float(r0)
+    max_shift = 3 * r0 if max_shift is None else max_shift
+    min_inliers = max(int(min_inliers), 3)
+    damping = 1e-3
+    for _ in range(int(max_iterations)):
+        damping = min(damping, 1e6)
+        du, dv = u - a, v - b
+        d = np.sqrt(du * du + dv * dv)
+        inliers = np.abs(d - r) <= r_eps
+        n = int(np.count_nonzero(inliers))
+        if n < min_inliers:
+            raise PerceptionError(f"only {n} point(s) lie within r_eps = {r_eps} m of the circle at "
+                                  f"({a + c0[0]:.4f}, {b + c0[1]:.4f})")
+        du, dv, d = du[inliers], dv[inliers], np.maximum(d[inliers], 1e-12)
+        rows = np.empty((4, n))
+        rows[0], rows[1], rows[2], rows[3] = du / d, dv / d, 1.0, d - r
+        sums = rows @ rows.T  # J^T J (J = -(unit, 1)), -J^T residual, and the cost, at once
+        A, minus_g, cost = sums[:3, :3], sums[:3, 3], sums[3, 3]
+        step = np.zeros(3)
+        while damping < 1e12:
+            damped = A.copy()
+            damped.flat[::4] += damping * (A.flat[::4] + 1e-12)
+            trial = np.linalg.solve(damped, minus_g)
+            res = np.hypot(du - trial[0], dv - trial[1]) - (r + trial[2])
+            if res @ res <= cost:
+                step, damping = trial, max(damping / 10, 1e-12)
+                break
+            damping *= 10  # the step overshot: lean toward gradient descent
+        a, b, r = a + step[0], b + step[1], r + step[2]
+        if not (np.isfinite((a, b, r)).all() and np.hypot(a, b) <= max_shift
+                and 0 < r <= max(10 * r0, r0 + max_shift)):
+            raise PerceptionError(f"the circle fit diverged (centre moved more than {max_shift} m or radius "
+                                  "left its range)")
+        if np.sqrt(step @ step) < tol:
+            break
+    n = int(np.count_nonzero(np.abs(np.hypot(u - a, v - b) - r) <= r_eps))
+    if n < min_inliers:
+        raise PerceptionError(f"only {n} point(s) lie within r_eps = {r_eps} m of the fitted circle")
+    return float(a + c0[0]), float(b + c0[1]), float(r)
+
+
+def fit_circle_robust(xy, c0, r0, r_eps, k=4.685, min_scale=5e-4, max_iterations=20, tol=1e-6, max_shift=None):
+    """A circle by Tukey's biweight M-estimator (iteratively reweighted Gauss-Newton) from (c0, r0):
+    (cx, cy, r, scale) in metres.
+
+    Points of another surface near the circle (a box face or a neighbour can touching the can)
+    pull a least-squares fit; the biweight gives points beyond k x scale no weight at all. The
+    scale is re-estimated every iteration as 1.4826 x the median absolute residual of the points
+    within r_eps (m), floored at min_scale (m: depth quantization can make the median vanish).
+    xy: float64 (N, 2) or (N, 3) finite points (m, plane frame; z ignored). Raises PerceptionError
+    when fewer than 3 points keep a weight or the centre moves more than max_shift (default r0).
+    """
+    if not (r_eps > 0 and r0 > 0 and k > 0 and min_scale > 0):
+        raise PerceptionError(f"r_eps, r0, k and min_scale must be > 0, got {r_eps}, {r0}, {k}, {min_scale}")
+    xy, c0, u, v = _from_start(xy, c0)
+    a = b = 0.0
+    r = float(r0)
+    max_shift = r0 if max_shift is None else max_shift
+    scale = min_scale
+    rows = np.empty((4, len(xy)))
+    for _ in range(int(max_iterations)):
+        du, dv = u - a, v - b
+        d = np.maximum(np.sqrt(du * du + dv * dv), 1e-12)
+        res = d - r
+        size = np.abs(res)
+        near = size[size <= r_eps]
+        if len(near) < 3:
+            raise PerceptionError(f"only {len(near)} point(s) within r_eps = {r_eps} m of the circle")
+        half = len(near) // 2
+        near.partition(half)  # the median by a partial sort (upper median for an even count)
+        scale = max(1.4826 * float(near[half]), min_scale)
+        t = size * (1.0 / (k * scale))
+        w = np.maximum(1.0 - t * t, 0.0) ** 2
+        if np.count_nonzero(w) < 3:
+            raise PerceptionError("fewer than 3 points keep a weight in the robust circle fit")
+        rows[0], rows[1], rows[2], rows[3] = du / d, dv / d, 1.0, res  # -J and the residual
+        sums = (rows * w) @ rows.T
+        try:
+            step = np.linalg.solve(sums[:3, :3] + 1e-12 * np.eye(3), sums[:3, 3])
+        except np.linalg.LinAlgError:
+            raise PerceptionError("the robust circle fit is singular (the points are collinear)") from None
+        a, b, r = a + step[0], b + step[1], r + step[2]
+        if not (np.isfinite((a, b, r)).all() and np.hypot(a, b) <= max_shift and r > 0):
+            raise PerceptionError(f"the robust circle fit diverged (centre moved more than {max_shift} m)")
+        if np.sqrt(step @ step) < tol:
+            break
+    return float(a + c0[0]), float(b + c0[1]), float(r), scale
+
+
+def biweight_loss(xy, cx, cy, r, cutoff):
+    """Tukey's biweight loss sum (each point 0..1) of points about a circle, with cutoff (m) the
+    residual beyond which a point costs 1: compares circles fitted by fit_circle_robust at one scale."""
+    xy = _xy(xy)
+    t = np.minimum(np.abs(np.hypot(xy[:, 0] - cx, xy[:, 1] - cy) - r) / cutoff, 1.0)
+    return float(np.sum(1.0 - (1.0 - t * t) ** 3))

@@ -201,3 +201,49 @@ def test_real_scenes_without_cans_have_none(name):
     cloud = read_pcd(str(OSD / f"{name}.pcd"))
     result = af.find_cans(cloud.xyz, viewpoint=cloud.origin)
     assert result.cans == [], result.message
+
+
+def test_batched_algebraic_circles_match_the_one_at_a_time_fit():
+    """fit_circles_algebraic on K masks gives fit_circle_algebraic of each subset; collinear -> NaN."""
+    from example_pcl import geometry as g
+
+    rng = np.random.default_rng(4)
+    angle = rng.uniform(0.0, 2.5, 300)
+    xy = np.c_[0.4 + 0.05 * np.cos(angle), -0.2 + 0.05 * np.sin(angle)] + rng.normal(0.0, 0.001, (300, 2))
+    masks = rng.random((5, 300)) < 0.4
+    batched = np.array(g.fit_circles_algebraic(xy, masks)).T
+    np.testing.assert_allclose(batched, [g.fit_circle_algebraic(xy[m]) for m in masks], atol=1e-9)
+    line = np.c_[np.arange(5.0), 2 * np.arange(5.0)]
+    assert np.isnan(g.fit_circles_algebraic(line)[2][0])
+
+
+def test_lean_circle_fit_matches_fit_cylinder():
+    """fit_circle_geometric converges to fit_cylinder's circle from the same start."""
+    from example_pcl import geometry as g
+
+    rng = np.random.default_rng(5)
+    angle = rng.uniform(-1.5, 1.5, 200)
+    xy = np.c_[0.1 + 0.035 * np.cos(angle), 0.3 + 0.035 * np.sin(angle)] + rng.normal(0.0, 0.001, (200, 2))
+    fit = g.fit_cylinder(xy, (0.104, 0.297), 0.031, 0.006, max_iterations=20, tol=1e-5, min_inliers=30)
+    lean = g.fit_circle_geometric(xy, (0.104, 0.297), 0.031, 0.006, max_iterations=20, tol=1e-5, min_inliers=30)
+    np.testing.assert_allclose(lean, (fit.cx, fit.cy, fit.radius), atol=1e-9)
+
+
+def test_robust_circle_fit_ignores_a_face_touching_the_circle():
+    """A box face tangent to the circle near one end of the arc pulls the least-squares circle by
+    millimetres; the biweight circle started there comes back to the can (within 0.5 mm) and its scale
+    is the noise's."""
+    from example_pcl import geometry as g
+
+    rng = np.random.default_rng(6)
+    r, noise = 0.045, 0.0004
+    angle = rng.uniform(-2.6, 0.3, 300)
+    arc = np.c_[r * np.cos(angle), r * np.sin(angle)]
+    # The face x = r touches the circle at angle 0, seen from y = -0.02 to 0.03 (beyond the arc's end).
+    face = np.c_[np.full(120, r), rng.uniform(-0.02, 0.03, 120)]
+    xy = np.r_[arc, face] + rng.normal(0.0, noise, (420, 2))
+    least = g.fit_circle_geometric(xy, (0.0, 0.0), r, 0.006, max_iterations=50, tol=1e-7, min_inliers=30)
+    assert np.hypot(*least[:2]) > 0.002  # the drift the robust fit is for
+    cx, cy, fitted, scale = g.fit_circle_robust(xy, least[:2], least[2], 0.006, max_iterations=50, tol=1e-7)
+    assert np.hypot(cx, cy) < 0.0005 and abs(fitted - r) < 0.0005
+    assert 0.5 * noise < scale < 3 * noise
