@@ -60,7 +60,7 @@ from example_pcl import can_search
 from example_pcl import geometry as g
 from example_pcl import transforms
 from example_pcl.can import Can
-from example_pcl.errors import PerceptionError
+from example_pcl.errors import PerceptionError, require_positive
 
 
 # AutoConfig.search: inside clusters (can_search, issue 13), or each cluster one can (issue 5).
@@ -151,9 +151,7 @@ class AutoConfig:
         positive = ("ransac_step", "plane_distance", "max_planes", "refine_step", "refine_band", "refine_iterations",
                     "max_height", "cluster_distance", "min_cluster_points", "max_fit_points", "r_eps", "min_radius",
                     "max_radius", "shape_bins", "min_fit_points")
-        for name in positive:
-            if not getattr(self, name) > 0:
-                raise PerceptionError(f"AutoConfig.{name} must be > 0, got {getattr(self, name)}")
+        require_positive(self, positive)
         if not 0 <= self.min_height < self.max_height:
             raise PerceptionError(f"AutoConfig needs 0 <= min_height < max_height (m), got {self.min_height}, "
                                   f"{self.max_height}")

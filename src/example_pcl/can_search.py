@@ -47,7 +47,7 @@ from typing import List, Optional
 import numpy as np
 
 from example_pcl import geometry as g
-from example_pcl.errors import PerceptionError
+from example_pcl.errors import PerceptionError, require_positive
 
 
 @dataclass(frozen=True)
@@ -103,10 +103,8 @@ class CylinderSearchConfig:
 
     def validate(self):
         """Raises PerceptionError naming the first value that makes no sense."""
-        for name in ("grid_step", "hypotheses", "pool_points", "wall_cell", "verify", "max_rounds", "band_height",
-                     "min_band_points", "open_depth", "handle_reach"):
-            if not getattr(self, name) > 0:
-                raise PerceptionError(f"CylinderSearchConfig.{name} must be > 0, got {getattr(self, name)}")
+        require_positive(self, ("grid_step", "hypotheses", "pool_points", "wall_cell", "verify", "max_rounds",
+                                "band_height", "min_band_points", "open_depth", "handle_reach"))
 
 
 @dataclass(frozen=True, eq=False)

@@ -12,6 +12,14 @@ class PerceptionError(ValueError):
     """
 
 
+def require_positive(config, names):
+    """Raises PerceptionError naming the first of config's fields `names` that is not > 0."""
+    for name in names:
+        value = getattr(config, name)
+        if not value > 0:
+            raise PerceptionError(f"{type(config).__name__}.{name} must be > 0, got {value}")
+
+
 def warning_kind(error: Exception) -> str:
     """A key grouping errors of one kind: the message with its numbers and quoted names blanked.
 

@@ -43,7 +43,7 @@ from example_pcl import auto_finder as af
 from example_pcl import geometry as g
 from example_pcl import transforms
 from example_pcl.can import Can
-from example_pcl.errors import PerceptionError
+from example_pcl.errors import PerceptionError, require_positive
 
 
 @dataclass(frozen=True)
@@ -80,11 +80,9 @@ class LocalFitConfig:
     def validate(self):
         """Raises PerceptionError naming the first value that makes no sense."""
         self.auto.validate()
-        for name in ("table_step", "table_band", "table_iterations", "max_table_tilt", "max_table_shift",
-                     "region_margin", "max_radius_change", "max_fit_points", "fit_tolerance", "change_step",
-                     "min_new_points", "search_period"):
-            if not getattr(self, name) > 0:
-                raise PerceptionError(f"LocalFitConfig.{name} must be > 0, got {getattr(self, name)}")
+        require_positive(self, ("table_step", "table_band", "table_iterations", "max_table_tilt", "max_table_shift",
+                                "region_margin", "max_radius_change", "max_fit_points", "fit_tolerance",
+                                "change_step", "min_new_points", "search_period"))
         for name in ("roi_margin", "change_dilation"):
             if getattr(self, name) < 0:
                 raise PerceptionError(f"LocalFitConfig.{name} must be >= 0, got {getattr(self, name)}")

@@ -38,7 +38,7 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from example_pcl import geometry as g
-from example_pcl.errors import PerceptionError
+from example_pcl.errors import PerceptionError, require_positive
 
 
 @dataclass(frozen=True)
@@ -76,10 +76,8 @@ class TrackerConfig:
 
     def validate(self):
         """Raises PerceptionError naming the first value that makes no sense."""
-        for name in ("max_missed", "gate_distance", "radius_gate", "position_noise", "accel_noise", "max_accel",
-                     "init_speed", "lag_sigmas", "max_gap", "confirm_hits", "rms_limit"):
-            if not getattr(self, name) > 0:
-                raise PerceptionError(f"TrackerConfig.{name} must be > 0, got {getattr(self, name)}")
+        require_positive(self, ("max_missed", "gate_distance", "radius_gate", "position_noise", "accel_noise",
+                                "max_accel", "init_speed", "lag_sigmas", "max_gap", "confirm_hits", "rms_limit"))
         for name in ("axis_gain", "size_gain", "lag_gain"):
             if not 0 < getattr(self, name) <= 1:
                 raise PerceptionError(f"TrackerConfig.{name} must be in (0, 1], got {getattr(self, name)}")

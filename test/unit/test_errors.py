@@ -31,3 +31,22 @@ def test_once_per_kind_without_again_only_counts():
     assert [once("x", PerceptionError("bad 1")), once("x", PerceptionError("bad 2"))] == [True, False]
     assert first == ["x: bad 1 (further ones of this kind are counted, not logged)"]
     assert list(once.counts.values()) == [2]
+
+
+def test_require_positive_names_the_config_and_the_first_bad_field():
+    """require_positive passes when every named field is > 0 and otherwise names the first bad one."""
+    import dataclasses
+
+    import pytest
+
+    from example_pcl.errors import PerceptionError, require_positive
+
+    @dataclasses.dataclass
+    class Config:
+        a: float = 1.0
+        b: int = 0
+        c: float = -1.0
+
+    require_positive(Config(), ("a",))
+    with pytest.raises(PerceptionError, match=r"Config\.b must be > 0, got 0"):
+        require_positive(Config(), ("a", "b", "c"))
