@@ -377,22 +377,6 @@ def _grid_indices(flat, grid_shape, full_shape, step):
     return rows * step * full_shape[1] + cols * step
 
 
-def _can_from_hit(hit, T_sensor_from_plane, indices):
-    """A can_search.CylinderHit (plane frame) as a Can (sensor frame)."""
-    z = np.asarray(hit.axis, dtype=float)
-    x = np.array([1.0, 0.0, 0.0]) if abs(z[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    x -= (x @ z) * z
-    x /= np.linalg.norm(x)
-    T_plane_from_can = np.eye(4)
-    T_plane_from_can[:3, 0], T_plane_from_can[:3, 1], T_plane_from_can[:3, 2] = x, np.cross(z, x), z
-    T_plane_from_can[:3, 3] = hit.base_center
-    return Can(T_sensor_from_can=transforms.compose(T_sensor_from_plane, T_plane_from_can), radius=hit.radius,
-               height=hit.height, rms_error=hit.rms_error, arc_coverage=hit.arc_coverage, n_points=hit.n_points,
-               n_fit_points=hit.n_fit_points, center_plane=np.asarray(hit.base_center[:2], dtype=float),
-               shape_error=hit.shape_error, indices=indices, support=hit.support, base_seen=hit.base_seen,
-               support_height=float(hit.base_center[2]) if hit.upright else 0.0, lying=not hit.upright)
-
-
 def _search_cylinders(pts, T, viewpoint, config):
     """Step 2 and 3 by can_search (cans inside clusters): (cans, rejected, stage timings)."""
     t0 = time.perf_counter()
@@ -408,9 +392,9 @@ def _search_cylinders(pts, T, viewpoint, config):
     standing = _native.extract(in_plane, g.points_above_plane(in_plane, config.min_height, config.max_height))
     t2 = time.perf_counter()
     points = [_native.extract(in_plane, idx).astype(float) for idx in clusters]
-    hits, rejections = can_search.search(points, standing, sensor_plane, config)
-    cans = [_can_from_hit(hit, T, _grid_indices(clusters[k][hit.indices], in_plane.shape[:-1], pts.shape[:-1], step))
-            for k, hit in hits]
+    found, rejections = can_search.search(points, standing, T, sensor_plane, config)
+    cans = [dataclasses.replace(can, indices=_grid_indices(clusters[k][can.indices], in_plane.shape[:-1],
+                                                            pts.shape[:-1], step)) for k, can in found]
     rejected = [RejectedCluster(centroid=transforms.apply(T, rj.centroid), n_points=rj.n_points, reason=rj.reason,
                                 radius=rj.radius) for _, rj in rejections]
     cans.sort(key=lambda c: -c.n_fit_points)

@@ -38,15 +38,17 @@ partial sorts; figures in docs/can_search.md.
 
 What no hypothesis claims stays a rejected object with the reason of its best hypothesis.
 Lying cans are not looked for yet: their side is no circle from above, so they are never reported
-as upright cans (CylinderHit and Can can carry a horizontal axis for when they are).
+as upright cans (Can.lying is there for when they are).
 """
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from functools import partial
-from typing import List, Optional
+from typing import Optional
 
 import numpy as np
 
 from example_pcl import geometry as g
+from example_pcl import transforms
+from example_pcl.can import Can
 from example_pcl.errors import PerceptionError, require_positive
 
 
@@ -105,31 +107,6 @@ class CylinderSearchConfig:
         """Raises PerceptionError naming the first value that makes no sense."""
         require_positive(self, ("grid_step", "hypotheses", "pool_points", "wall_cell", "verify", "max_rounds",
                                 "band_height", "min_band_points", "open_depth", "handle_reach"))
-
-
-@dataclass(frozen=True, eq=False)
-class CylinderHit:
-    """A can found in a cluster, plane frame (m). Upright: axis (0, 0, 1) through (cx, cy), base
-    at base_z; lying: axis horizontal, base_center the centre of one end, height its length.
-    support: "table", "object" or "can"; base_seen: False when inferred behind an occluder;
-    indices: int64 into the searched grid (flattened) of its points."""
-
-    base_center: np.ndarray
-    axis: np.ndarray
-    radius: float
-    height: float
-    rms_error: float
-    arc_coverage: float
-    n_points: int
-    n_fit_points: int
-    shape_error: float
-    support: str
-    base_seen: bool
-    indices: np.ndarray = field(repr=False)
-
-    @property
-    def upright(self):
-        return bool(self.axis[2] > 0.9)
 
 
 @dataclass(frozen=True, eq=False)
@@ -269,10 +246,11 @@ class _Context:
 
     config: object  # auto_finder.AutoConfig
     search: CylinderSearchConfig
+    T_sensor_from_plane: np.ndarray  # 4x4: the table's plane frame in the sensor frame
     sensor: np.ndarray  # the sensor in the plane frame (m)
     standing: np.ndarray  # float64 (N, 3): every point standing on the table (for occluders)
     rng: np.random.Generator
-    found: list  # CylinderHits found so far (supports for stacked cans)
+    found: list  # the Cans found so far (supports for stacked cans)
 
 
 class _Free:
@@ -321,7 +299,7 @@ def _facing(x, y, cx, cy, r, ctx):
 
 def verify(free, cx, cy, r, ctx):
     """One circle hypothesis against a cluster's free points (_Free, plane frame):
-    (CylinderHit whose .indices index the cluster's points, None, None), or (None, reason, claim):
+    (Can whose .indices index the cluster's points, None, None), or (None, reason, claim):
     claim the indices of the points of a round object that is no can (a tin, cup, bowl), else None."""
     c, s = ctx.config, ctx.search
     sigma = _sigma(ctx, (cx, cy, free.median_z))
@@ -445,10 +423,12 @@ def verify(free, cx, cy, r, ctx):
     # On an object, the points within 3 sigma of its surface are the support's.
     lowest = base_z - 0.5 * s.band_height if support == "table" else base_z + 3 * sigma
     mine = free.idx[near[(dist <= r + r_eps) & (z >= lowest) & (z <= top + s.band_height)]]
-    hit = CylinderHit(base_center=np.array([cx, cy, base_z]), axis=np.array([0.0, 0.0, 1.0]), radius=r,
-                      height=height, rms_error=rms, arc_coverage=arc, n_points=len(mine), n_fit_points=n_side,
-                      shape_error=shape, support=support, base_seen=base_seen, indices=mine)
-    return hit, None, None
+    T_plane_from_can = transforms.from_translation_quaternion_xyzw((cx, cy, base_z), (0.0, 0.0, 0.0, 1.0))
+    can = Can(T_sensor_from_can=transforms.compose(ctx.T_sensor_from_plane, T_plane_from_can), radius=r,
+              height=height, rms_error=rms, arc_coverage=arc, n_points=len(mine), n_fit_points=n_side,
+              center_plane=np.array([cx, cy]), shape_error=shape, indices=mine, support=support,
+              base_seen=base_seen, support_height=float(base_z))
+    return can, None, None
 
 
 def _robust_refit(xy, cx, cy, r, r_eps, ctx):
@@ -524,8 +504,8 @@ def _support(points, cx, cy, r, base, r_eps, sigma, ctx):
         base_z = _percentile(z[level], 50) if n_beside >= s.min_band_points else base
         below = "object"
         for other in ctx.found:
-            top = other.base_center[2] + other.height
-            if (other.upright and np.hypot(cx - other.base_center[0], cy - other.base_center[1]) < other.radius
+            top = other.support_height + other.height
+            if (not other.lying and np.hypot(cx - other.center_plane[0], cy - other.center_plane[1]) < other.radius
                     and abs(top - base_z) < 0.02):
                 below = "can"
         return below, True, base_z, ""
@@ -624,14 +604,14 @@ def _wall_sample(points, n, cell, rng):
 
 
 def search_cluster(points, ctx):
-    """Every can in one cluster: (list of CylinderHit with indices into `points`, list of Rejection).
+    """Every can in one cluster: (list of Can with indices into `points`, list of Rejection).
 
     points: float64 (M, 3), plane frame (m)."""
     c, s = ctx.config, ctx.search
     # Height bands, once per cluster (points above max_height share the last band).
     bands = np.minimum((points[:, 2] / s.band_height).astype(np.int64), int(c.max_height / s.band_height))
     free = np.ones(len(points), bool)
-    hits, rejections, last = [], [], None
+    cans, rejections, last = [], [], None
     for _ in range(int(s.max_rounds)):
         idx = np.flatnonzero(free)
         if len(idx) < c.min_fit_points:
@@ -653,11 +633,11 @@ def search_cluster(points, ctx):
                       >= 0.5 * c.min_can_height]
         progress = False
         for cx0, cy0, r0, _ in candidates:
-            hit, reason, claim = verify(this_round, cx0, cy0, r0, ctx)
-            if hit is not None:
-                hits.append(hit)
-                ctx.found.append(hit)
-                free[hit.indices] = False
+            can, reason, claim = verify(this_round, cx0, cy0, r0, ctx)
+            if can is not None:
+                cans.append(can)
+                ctx.found.append(can)
+                free[can.indices] = False
                 progress = True
                 break
             if claim is not None and len(claim):
@@ -672,29 +652,31 @@ def search_cluster(points, ctx):
         if not progress:
             break
     rest = np.flatnonzero(free)
-    if len(rest) >= c.min_fit_points or not (hits or rejections):
+    if len(rest) >= c.min_fit_points or not (cans or rejections):
         reason, radius = last or ("nothing round left", None)
         rejections.append(Rejection(centroid=points[rest].mean(axis=0) if len(rest) else points.mean(axis=0),
                                     n_points=len(rest), reason=reason, radius=radius))
-    return hits, rejections
+    return cans, rejections
 
 
-def search(clusters, standing, sensor_plane, config, search_config=None):
-    """Every can in the clusters: (list of (cluster number, CylinderHit)), list of (cluster number,
-    Rejection)), hits' indices into that cluster's points.
+def search(clusters, standing, T_sensor_from_plane, sensor_plane, config, search_config=None):
+    """Every can in the clusters: (list of (cluster number, Can)), list of (cluster number,
+    Rejection)), each Can's indices into that cluster's points.
 
     clusters: list of float64 (M, 3) plane-frame points (m), one array per cluster; standing:
     float64 (N, 3), every point standing on the table (occluders are looked for among them);
-    sensor_plane: the sensor in the plane frame (m); config: auto_finder.AutoConfig (the band,
-    fit and criterion); search_config: CylinderSearchConfig (default config.cylinders)."""
+    T_sensor_from_plane: 4x4, the plane frame in the sensor frame (the Cans' poses are in the sensor
+    frame); sensor_plane: the sensor in the plane frame (m); config: auto_finder.AutoConfig (the
+    band, fit and criterion); search_config: CylinderSearchConfig (default config.cylinders)."""
     s = search_config or config.cylinders
     s.validate()
-    ctx = _Context(config=config, search=s, sensor=np.asarray(sensor_plane, dtype=float),
+    ctx = _Context(config=config, search=s, T_sensor_from_plane=np.asarray(T_sensor_from_plane, dtype=float),
+                   sensor=np.asarray(sensor_plane, dtype=float),
                    standing=np.asarray(standing, dtype=float), rng=np.random.default_rng(s.seed), found=[])
-    hits, rejections = [], []
+    cans, rejections = [], []
     # Lowest clusters first is not needed: a stacked can's support is in its own cluster.
     for k, points in enumerate(clusters):
         h, rej = search_cluster(points, ctx)
-        hits += [(k, hit) for hit in h]
+        cans += [(k, can) for can in h]
         rejections += [(k, rj) for rj in rej]
-    return hits, rejections
+    return cans, rejections
