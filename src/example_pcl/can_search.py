@@ -74,6 +74,11 @@ class CylinderSearchConfig:
     biweight (geometry.fit_circle_robust, cut-off robust_k x scale, the scale at least
     robust_min_scale) and replaced when at least min_outliers side points lie beyond the cut-off
     (another surface touching the can, not noise).
+    max_taper, taper_sigmas: a can's radius is the same along its height, a bowl's, pot's or cup's is
+    not. The side is rejected as tapered when its radius changes from the lower to the upper half
+    by more than max_taper (m per m of height between them: 0.07, a wall 4 degrees off vertical;
+    generated cans show at most 0.006, real ones 0.03) and by more than taper_sigmas standard
+    errors of the change (depth noise sigma, so noise alone almost never does it).
     seed: of the RANSAC sampling (the result is the same for the same cloud).
     """
 
@@ -101,6 +106,8 @@ class CylinderSearchConfig:
     robust_k: float = 4.685
     robust_min_scale: float = 0.0005
     min_outliers: int = 3
+    max_taper: float = 0.07
+    taper_sigmas: float = 3.0
     seed: int = 0
 
     def validate(self):
@@ -412,6 +419,11 @@ def verify(free, cx, cy, r, ctx):
     support, base_seen, base_z, why = _support(pts, cx, cy, r, base, r_eps, sigma, ctx)
     if support is None:
         return None, why, None
+    # The side's own points within 2 r_eps (not the robust fit's outliers), to see its radius change.
+    wall = (np.abs(dist - r) <= min(2 * r_eps, cutoff)) & _facing(x, y, cx, cy, r, ctx) & in_run
+    why = _tapered(dist[wall], z[wall], sigma, ctx)
+    if why:
+        return None, why, claim()
     height = top - base_z
     if height < c.min_can_height or top - base < min(c.min_can_height, 0.6 * height):
         return None, (f"one circle explains only {100 * (top - base):.1f} cm of it (min "
@@ -429,6 +441,42 @@ def verify(free, cx, cy, r, ctx):
               center_plane=np.array([cx, cy]), shape_error=shape, indices=mine, support=support,
               base_seen=base_seen, support_height=float(base_z))
     return can, None, None
+
+
+def radius_taper(dist, z):
+    """How the radius changes along the side: (change, height apart, n_low, n_up), or None with
+    fewer than 3 points in a half.
+
+    dist, z: distance from the axis and height of the side points (m). The side is split at its
+    median height; change: the median distance of the upper half minus that of the lower half (m;
+    > 0 wider at the top, a bowl or cup; < 0 narrower, an upside-down one); height apart: between
+    the halves' median heights (m); n_low, n_up: points per half."""
+    if len(z) < 6:
+        return None
+    mid = _percentile(z, 50)
+    up, low = z > mid, z <= mid
+    n_up, n_low = int(np.count_nonzero(up)), int(np.count_nonzero(low))
+    if n_up < 3 or n_low < 3:
+        return None
+    return (_percentile(dist[up], 50) - _percentile(dist[low], 50), _percentile(z[up], 50) - _percentile(z[low], 50),
+            n_low, n_up)
+
+
+def _tapered(dist, z, sigma, ctx):
+    """Why the side is no can's straight wall (a bowl, pot or cup), or "": its radius changes from the
+    lower to the upper half by more than max_taper x their height apart (steeper than any can's wall)
+    and by more than taper_sigmas standard errors of that change (not noise: the median of n points
+    with depth noise sigma is off by about 1.25 sigma / sqrt(n))."""
+    s = ctx.search
+    taper = radius_taper(dist, z)
+    if taper is None:
+        return ""
+    change, apart, n_low, n_up = taper
+    noise = s.taper_sigmas * 1.25 * sigma * np.sqrt(1.0 / n_low + 1.0 / n_up)
+    if abs(change) <= max(s.max_taper * apart, noise):
+        return ""
+    return (f"tapered: the radius changes by {1e3 * change:+.1f} mm over {1e3 * apart:.0f} mm of height (max "
+            f"{s.max_taper:.2f} per metre of height and {1e3 * noise:.1f} mm noise; a bowl, pot or cup, not a can)")
 
 
 def _robust_refit(xy, cx, cy, r, r_eps, ctx):

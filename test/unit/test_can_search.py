@@ -247,3 +247,54 @@ def test_robust_circle_fit_ignores_a_face_touching_the_circle():
     cx, cy, fitted, scale = g.fit_circle_robust(xy, least[:2], least[2], 0.006, max_iterations=50, tol=1e-7)
     assert np.hypot(cx, cy) < 0.0005 and abs(fitted - r) < 0.0005
     assert 0.5 * noise < scale < 3 * noise
+
+
+SENSOR = np.array([0.0, -0.8, 0.6])  # plane frame (m)
+
+
+def _round_object(bottom_radius, top_radius, height, seed, noise=0.001, n_side=1500, n_lid=300):
+    """Points (plane frame, m) that a sensor at SENSOR sees of a closed round object on the table
+    at the origin: a can when both radii are equal, else a frustum (an upside-down bowl or pot when
+    narrower at the top), with depth-like noise along the surface normal."""
+    rng = np.random.default_rng(seed)
+    z = rng.uniform(0.0, height, n_side)
+    angle = rng.uniform(-np.pi, np.pi, n_side)
+    radius = bottom_radius + (top_radius - bottom_radius) * z / height
+    normal = np.c_[np.cos(angle), np.sin(angle)]
+    side = np.c_[radius[:, None] * normal, z]
+    facing = normal @ SENSOR[:2] > 0  # the half facing the sensor
+    side = side[facing] + np.c_[rng.normal(0.0, noise, (int(facing.sum()), 1)) * normal[facing], np.zeros(facing.sum())]
+    lid_r, lid_a = top_radius * np.sqrt(rng.uniform(0, 1, n_lid)), rng.uniform(-np.pi, np.pi, n_lid)
+    lid = np.c_[lid_r * np.cos(lid_a), lid_r * np.sin(lid_a), height + rng.normal(0.0, noise, n_lid)]
+    return np.r_[side, lid]
+
+
+def _search_one(points):
+    """can_search.search on one cluster of plane-frame points, the plane frame as the sensor frame."""
+    return cs.search([points], points, np.eye(4), SENSOR, af.AutoConfig())
+
+
+def test_radius_taper_measures_a_cone_and_not_a_cylinder():
+    """radius_taper: a side 10 mm narrower over 100 mm gives -5 mm between halves 50 mm apart; a
+    cylinder's change is ~0."""
+    rng = np.random.default_rng(8)
+    z = rng.uniform(0.0, 0.1, 2000)
+    change, apart, n_low, n_up = cs.radius_taper(0.045 - 0.1 * z, z)
+    assert change == pytest.approx(-0.005, abs=5e-4) and apart == pytest.approx(0.05, abs=5e-3)
+    assert n_low + n_up == 2000
+    flat = cs.radius_taper(0.04 + rng.normal(0.0, 0.001, 2000), z)[0]
+    assert abs(flat) < 3e-4
+    assert cs.radius_taper(np.full(4, 0.04), z[:4]) is None
+
+
+def test_a_tapered_round_object_is_rejected_as_tapered_and_a_can_is_not():
+    """An upside-down pot (radius 45 -> 36 mm over 10 cm, 5 degrees) is rejected as tapered; a can of
+    the same size seen the same way is found; with the rule off (max_taper huge), the pot is a can."""
+    pot = _round_object(0.045, 0.036, 0.1, seed=1)
+    cans, rejected = _search_one(pot)
+    assert cans == [], [c.radius for _, c in cans]
+    assert any(r.reason.startswith("tapered") for _, r in rejected), [r.reason for _, r in rejected]
+    cans, _ = _search_one(_round_object(0.04, 0.04, 0.1, seed=1))
+    assert len(cans) == 1 and cans[0][1].radius == pytest.approx(0.04, abs=0.002)
+    off = af.AutoConfig(cylinders=cs.CylinderSearchConfig(max_taper=10.0, taper_sigmas=1e3))
+    assert len(cs.search([pot], pot, np.eye(4), SENSOR, off)[0]) == 1
