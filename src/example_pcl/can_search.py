@@ -17,9 +17,10 @@ and measured figures are in docs/can_search.md; in short, per cluster and round:
    no more inside the disc than on it. The can spans that run; its top is the lid above it.
 3. **Fit and side criterion.** Levenberg-Marquardt (geometry.fit_cylinder) on the run's points
    on the circle, refitted by Tukey's biweight when that finds another surface's points among them
-   (a box or can touching it; _robust_refit), then auto_finder's criterion: radius, inlier fraction, rms residual, shape error
-   (flat faces of boxes and prisms), visible arc, and at least min_can_height explained by the
-   one circle (a bowl's radius changes with height).
+   (a box or can touching it; _robust_refit), then auto_finder's criterion: radius, inlier
+   fraction, rms residual, shape error (flat faces of boxes and prisms), visible arc, the same
+   radius along the height (a tapered side is a bowl's, pot's or cup's: _tapered), and at least
+   min_can_height explained by the one circle (a bowl's radius changes with height).
 4. **What it stands on.** Base within ``table_gap`` of the table: on the table, base seen.
    Else a surface at the base's height around the can, beside or behind its front (a tin's lid,
    a box's top): on that object (``support`` "object", or "can" when it is a can found
