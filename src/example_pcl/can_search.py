@@ -37,10 +37,14 @@ cluster's, height bands computed once per cluster), fits by geometry.fit_circles
 fit_circle_geometric (fit_cylinder's objective with less overhead) and takes percentiles by
 partial sorts; figures in docs/can_search.md.
 
-What no hypothesis claims stays a rejected object with the reason of its best hypothesis.
-Lying cans are not looked for yet: their side is no circle from above, so they are never reported
-as upright cans (Can.lying is there for when they are).
+7. **Lying cans.** What no upright can claims is tried as a can on its side (example_pcl.lying: a
+   horizontal cylinder one radius above the table, judged like a side); the parts of one lying can
+   that an object across it splits into two clusters are joined (_join_lying).
+
+What no hypothesis claims stays a rejected object with the reason of its best hypothesis (and why
+it is no lying can either).
 """
+import dataclasses
 from dataclasses import dataclass
 from functools import partial
 from typing import Optional
@@ -48,6 +52,7 @@ from typing import Optional
 import numpy as np
 
 from example_pcl import geometry as g
+from example_pcl import lying
 from example_pcl import transforms
 from example_pcl.can import Can
 from example_pcl.errors import PerceptionError, require_positive
@@ -80,6 +85,11 @@ class CylinderSearchConfig:
     by more than max_taper (m per m of height between them: 0.07, a wall 4 degrees off vertical;
     generated cans show at most 0.006, real ones 0.03) and by more than taper_sigmas standard
     errors of the change (depth noise sigma, so noise alone almost never does it).
+    lying_gap (m), lying_directions: what no upright can claims is tried as a lying can
+    (example_pcl.lying): its axis, scanned over lying_directions directions, lies one radius above
+    the table to within lying_gap (and 3 sigma). lying_join_angle (rad), lying_join_offset (m),
+    lying_join_gap (m): two lying cans are the parts of one that an object across it splits
+    (_join_lying).
     seed: of the RANSAC sampling (the result is the same for the same cloud).
     """
 
@@ -109,12 +119,17 @@ class CylinderSearchConfig:
     min_outliers: int = 3
     max_taper: float = 0.07
     taper_sigmas: float = 3.0
+    lying_gap: float = 0.01
+    lying_directions: int = 36
+    lying_join_angle: float = 0.1
+    lying_join_offset: float = 0.01
+    lying_join_gap: float = 0.15
     seed: int = 0
 
     def validate(self):
         """Raises PerceptionError naming the first value that makes no sense."""
         require_positive(self, ("grid_step", "hypotheses", "pool_points", "wall_cell", "verify", "max_rounds",
-                                "band_height", "min_band_points", "open_depth", "handle_reach"))
+                                "band_height", "min_band_points", "open_depth", "handle_reach", "lying_directions"))
 
 
 @dataclass(frozen=True, eq=False)
@@ -701,11 +716,47 @@ def search_cluster(points, ctx):
         if not progress:
             break
     rest = np.flatnonzero(free)
+    if len(rest) >= c.min_fit_points:
+        can, why = _lying(points, rest, ctx)
+        if can is not None:
+            cans.append(can)
+            ctx.found.append(can)
+            free[can.indices] = False
+            rest = np.flatnonzero(free)
+        elif last is not None:
+            last = (f"{last[0]}; {why}", last[1])
+        else:
+            last = (why, None)
     if len(rest) >= c.min_fit_points or not (cans or rejections):
         reason, radius = last or ("nothing round left", None)
         rejections.append(Rejection(centroid=points[rest].mean(axis=0) if len(rest) else points.mean(axis=0),
                                     n_points=len(rest), reason=reason, radius=radius))
     return cans, rejections
+
+
+def _lying(points, rest, ctx):
+    """A lying can among the points `rest` (indices into the cluster's points, plane frame) that no
+    upright can claimed: (Can with lying=True and indices into the cluster's points, "") or
+    (None, why not)."""
+    c = ctx.config
+    pts = points[rest]
+    sigma = _sigma(ctx, pts.mean(axis=0))
+    r_eps = max(c.r_eps, c.r_eps_sigmas * sigma)
+    found, why = lying.lying_can(pts, r_eps, sigma, c, ctx.search)
+    if found is None:
+        return None, why
+    fit = found.fit
+    ux, uy, _ = found.direction
+    # The can's frame: z along the axis, x up from the table, y = z x x (right-handed).
+    R = np.array([[0.0, uy, ux], [0.0, -ux, uy], [1.0, 0.0, 0.0]])
+    T_plane_from_can = np.eye(4)
+    T_plane_from_can[:3, :3], T_plane_from_can[:3, 3] = R, found.start
+    middle = found.start + 0.5 * found.length * found.direction
+    can = Can(T_sensor_from_can=transforms.compose(ctx.T_sensor_from_plane, T_plane_from_can), radius=fit.radius,
+              height=found.length, rms_error=found.rms, arc_coverage=found.arc, n_points=int(found.mine.sum()),
+              n_fit_points=int(found.inliers.sum()), center_plane=middle[:2].copy(), shape_error=found.shape_error,
+              indices=rest[found.mine], support="table", base_seen=True, support_height=0.0, lying=True)
+    return can, ""
 
 
 def search(clusters, standing, T_sensor_from_plane, sensor_plane, config, search_config=None):
@@ -728,4 +779,84 @@ def search(clusters, standing, T_sensor_from_plane, sensor_plane, config, search
         h, rej = search_cluster(points, ctx)
         cans += [(k, can) for can in h]
         rejections += [(k, rj) for rj in rej]
-    return cans, rejections
+    return _join_lying(cans, ctx), rejections
+
+
+def _join_lying(cans, ctx):
+    """The (cluster number, Can) list with the parts of one lying can joined: an object standing
+    across a lying can (a box in front of its middle) splits it into two clusters, each a shorter
+    lying can. Two lying cans are one when their axes are within lying_join_angle (rad) of each other,
+    each one's axis passes within lying_join_offset (m) of the other's middle, their radii differ
+    by less than that, the gap between them is at most lying_join_gap (m) and some standing object
+    reaches up to their axis' height in that gap (it hides the middle). The joined can keeps the
+    larger part's cluster number and indices."""
+    T_plane_from_sensor = transforms.invert(ctx.T_sensor_from_plane)
+    joined = True
+    while joined:
+        joined = False
+        lying_at = [i for i, (_, can) in enumerate(cans) if can.lying]
+        for i in lying_at:
+            for j in lying_at:
+                if i < j and _same_lying(cans[i][1], cans[j][1], T_plane_from_sensor, ctx):
+                    a, b = cans[i][1], cans[j][1]
+                    keep = cans[i][0] if a.n_points >= b.n_points else cans[j][0]
+                    bigger = a if a.n_points >= b.n_points else b
+                    cans = [kc for n, kc in enumerate(cans) if n not in (i, j)]
+                    cans.append((keep, _joined(a, b, bigger, T_plane_from_sensor)))
+                    joined = True
+                    break
+            if joined:
+                break
+    return cans
+
+
+def _lying_ends(can, T_plane_from_sensor):
+    """(start, end, unit direction) of a lying can's axis in the plane frame (m)."""
+    start = transforms.apply(T_plane_from_sensor, can.base_center)
+    end = transforms.apply(T_plane_from_sensor, can.base_center + can.height * can.axis)
+    return start, end, (end - start) / max(can.height, 1e-9)
+
+
+def _same_lying(a, b, T_plane_from_sensor, ctx):
+    """Whether the lying cans a and b are two visible parts of one (see _join_lying)."""
+    s = ctx.search
+    sa, ea, ua = _lying_ends(a, T_plane_from_sensor)
+    sb, eb, ub = _lying_ends(b, T_plane_from_sensor)
+    if abs(float(ua @ ub)) < np.cos(s.lying_join_angle) or abs(a.radius - b.radius) > s.lying_join_offset:
+        return False
+    for (p, u), m in (((sa, ua), 0.5 * (sb + eb)), ((sb, ub), 0.5 * (sa + ea))):
+        rel = m - p
+        if np.linalg.norm(rel - (rel @ u) * u) > s.lying_join_offset:
+            return False
+    # Along a's axis: b's span, and the gap between the two spans.
+    ta = sorted((0.0, a.height))
+    tb = sorted(((sb - sa) @ ua, (eb - sa) @ ua))
+    lo, hi = (ta[1], tb[0]) if tb[0] >= ta[1] else (tb[1], ta[0])
+    if hi - lo > s.lying_join_gap:
+        return False
+    st = ctx.standing
+    rel = st - sa
+    along = rel @ ua
+    lateral = np.linalg.norm(rel[:, :2] - along[:, None] * ua[:2], axis=1)
+    hiding = ((along >= lo - 0.01) & (along <= hi + 0.01) & (lateral <= a.radius + s.occluder_reach)
+              & (st[:, 2] >= sa[2]))
+    return int(np.count_nonzero(hiding)) >= s.min_band_points
+
+
+def _joined(a, b, bigger, T_plane_from_sensor):
+    """One lying Can from its two parts a and b: the axis of the bigger part from the farthest
+    end to the farthest end."""
+    start, _, u = _lying_ends(bigger, T_plane_from_sensor)
+    ends = [transforms.apply(T_plane_from_sensor, c.base_center + t * c.height * c.axis)
+            for c in (a, b) for t in (0, 1)]
+    along = [(e - start) @ u for e in ends]
+    lo, hi = min(along), max(along)
+    T = bigger.T_sensor_from_can.copy()
+    T[:3, 3] = bigger.base_center + lo * bigger.axis
+    n = a.n_fit_points + b.n_fit_points
+    rms = float(np.sqrt((a.n_fit_points * a.rms_error ** 2 + b.n_fit_points * b.rms_error ** 2) / max(n, 1)))
+    middle = transforms.apply(T_plane_from_sensor, T[:3, 3] + 0.5 * (hi - lo) * bigger.axis)
+    return dataclasses.replace(bigger, T_sensor_from_can=T, height=float(hi - lo), rms_error=rms,
+                               arc_coverage=max(a.arc_coverage, b.arc_coverage), n_points=a.n_points + b.n_points,
+                               n_fit_points=n, center_plane=middle[:2].copy(),
+                               radius=(a.n_fit_points * a.radius + b.n_fit_points * b.radius) / max(n, 1))
