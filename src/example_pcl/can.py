@@ -19,7 +19,8 @@ class Can:
     points within r_eps of the circle; arc_coverage: angular span of those points around the
     axis (0..2 pi; about pi for the visible half); n_points: points the fit looked at (mode 4: its
     cluster; modes 2-3: the points above the table near the can); n_fit_points: of them, those
-    within r_eps of the circle; center_plane: float64 (2,), the axis (cx, cy) in the plane frame;
+    within r_eps of the circle; center_plane: float64 (2,), the axis (cx, cy) in the plane frame
+    (lying: the axis's middle seen from above);
     iterations: of the fit (0 for mode 2's guess and for mode 4, whose fit is not continued);
     converged: of the fit (True for mode 2's guess, which is not iterated); shape_error (mode 4
     only, else None): the systematic radial deviation (see auto_finder.shape_error); indices
