@@ -95,6 +95,20 @@ class FindCanConfig:
 # --- the node -------------------------------------------------------------------------------------
 
 
+def forget_latched(publisher):
+    """Drops a latched rospy.Publisher's last message: later subscribers get nothing until the next
+    publish. PoseStamped has no 'delete'; re-advertising the topic instead races with subscribers
+    reconnecting to the same node URI and can leave them unconnected."""
+    impl = getattr(publisher, "impl", None)
+    if impl is None:  # a stand-in publisher (tests) keeps no latch
+        return
+    impl.acquire()  # the lock publish() takes, so a publish in flight is not half undone
+    try:
+        impl.latch = None
+    finally:
+        impl.release()
+
+
 class FindCanNode:
     """Wires ROS to a CanFinder: selections in, one service call per step, results out, latched.
 
@@ -133,7 +147,6 @@ class FindCanNode:
         def pub(topic, kind):
             return rospy.Publisher(topic, kind, queue_size=1, latch=True)
 
-        self._pub = pub
         self.scene_pub = pub(SCENE_TOPIC, PointCloud2)
         self.model_pub = pub(MODEL_TOPIC, PointCloud2)
         self.pose_pub = pub(POSE_TOPIC, PoseStamped)
@@ -370,16 +383,12 @@ class FindCanNode:
 
     def _forget_can(self, frame, stamp):
         """A new table forgets the can: its marker deleted, can_poses, can_markers and cans emptied,
-        and can_pose (can_pose_target) advertised anew, so no latched pose of it stays."""
-        from geometry_msgs.msg import PoseStamped
-
+        and can_pose's (can_pose_target's) latched pose dropped, so no new subscriber gets it."""
         self.marker_pub.publish(messages.delete_marker(frame, stamp=stamp))
         self._publish_all_cans((), frame, stamp)
-        self.pose_pub.unregister()
-        self.pose_pub = self._pub(POSE_TOPIC, PoseStamped)
-        if self.target_pub is not None:
-            self.target_pub.unregister()
-            self.target_pub = self._pub(TARGET_POSE_TOPIC, PoseStamped)
+        for pub in (self.pose_pub, self.target_pub):
+            if pub is not None:
+                forget_latched(pub)
 
     def _publish_all_cans(self, cans, frame, stamp):
         """Mode 4's can_poses (PoseArray), can_markers (MarkerArray: a DELETEALL, so no marker of an

@@ -35,7 +35,7 @@ import rostest
 from shape_msgs.msg import SolidPrimitive
 from visualization_msgs.msg import Marker
 from find_can_helpers import (PKG, call_mode, call_mode_until, find_can_node, pixel_rect, pose_error,
-                              send_static_transforms, table_rect)
+                              pose_reaches_new_process, send_static_transforms, table_rect)
 
 from example_pcl import scene as sc
 from example_pcl.msg import CanArray
@@ -344,7 +344,9 @@ class Auto(unittest.TestCase):
 
     def test_8_a_new_table_forgets_the_can(self):
         """After mode 0 starts a new walkthrough, no latched output shows the forgotten can: a new
-        subscriber gets no can_pose, can_markers holds only a DELETEALL, can_poses and cans are empty."""
+        subscriber (another process: this one's subscribers keep what they received) gets no
+        can_pose, can_markers holds only a DELETEALL, can_poses and cans are empty; a subscriber
+        connected before mode 0 stays connected and gets the next can_pose."""
         from geometry_msgs.msg import PoseArray, PoseStamped
         from visualization_msgs.msg import MarkerArray
 
@@ -361,8 +363,23 @@ class Auto(unittest.TestCase):
         self.assertEqual(latest("/tilted", "cans", CanArray).cans, [])
         self.assertEqual([m.action for m in latest("/tilted", "can_markers", MarkerArray).markers],
                          [Marker.DELETEALL])
-        with self.assertRaises(rospy.ROSException):
-            rospy.wait_for_message("/tilted/can_pose", PoseStamped, timeout=2.0)
+        self.assertFalse(pose_reaches_new_process("/tilted/can_pose", timeout=4.0))
+        # The walkthrough's can_pose still reaches a subscriber that was connected before mode 0.
+        poses = []
+        sub = rospy.Subscriber("/tilted/can_pose", PoseStamped, poses.append)
+        try:
+            time.sleep(1.0)
+            poses.clear()
+            client.select(select_points(scene.xyz, rect=pixel_rect(scene.labels, sc.LABEL_CAN_SIDE + WALKED_CAN, half=3)))
+            for mode in (1, 2, 3):
+                ok, message = call_mode("/tilted", mode)
+                self.assertTrue(ok, message)
+            deadline = time.monotonic() + 10
+            while not poses and time.monotonic() < deadline:
+                time.sleep(0.1)
+            self.assertTrue(poses, "no can_pose after modes 1-3 on a subscriber connected before mode 0")
+        finally:
+            sub.unregister()
 
     def test_6_no_can_scene(self):
         """A table with only a box: mode 4 answers success=False saying no can was found and why

@@ -91,6 +91,21 @@ def call_mode_until(ns, mode, done, timeout=15.0):
         time.sleep(0.2)
 
 
+def pose_reaches_new_process(topic, timeout):
+    """Whether a subscriber started now in another process gets a geometry_msgs/PoseStamped on topic
+    within timeout (s): what a latched publisher hands a new subscriber (this process's subscribers
+    would replay what their connections already received)."""
+    probe = ("import sys, rospy\nfrom geometry_msgs.msg import PoseStamped\n"
+             "rospy.init_node('latch_probe', anonymous=True)\n"
+             "try:\n    rospy.wait_for_message(sys.argv[1], PoseStamped, timeout=float(sys.argv[2]))\n"
+             "    print('received')\nexcept rospy.ROSException:\n    print('nothing')\n")
+    out = subprocess.run([sys.executable, "-c", probe, topic, str(timeout)], stdout=subprocess.PIPE,
+                         stderr=subprocess.STDOUT, text=True, timeout=timeout + 60)
+    lines = out.stdout.strip().splitlines()
+    assert out.returncode == 0 and lines and lines[-1] in ("received", "nothing"), out.stdout
+    return lines[-1] == "received"
+
+
 def send_static_transforms(broadcaster, transforms):
     """Sends {(parent, child): 4x4 T_parent_from_child} on /tf_static in one message: the latched
     topic holds only the last message a process sent, so every frame goes in each one."""

@@ -171,3 +171,27 @@ def test_live_selection_before_the_first_cloud_is_taken_is_in_the_stream_frame(l
     answer = call(node, 0)
     assert answer.success, answer.message
     assert node.patch_pub.sent[-1].header.frame_id == "live_camera"
+
+
+def test_forget_latched_drops_the_latched_message_under_the_publish_lock():
+    """forget_latched empties a latched publisher's latch (taking and releasing publish()'s lock) and
+    leaves a publisher without one (a stand-in) alone."""
+    from example_pcl.find_can_node import forget_latched
+
+    class Impl:
+        def __init__(self):
+            self.latch, self.held, self.calls = "the forgotten pose", False, []
+
+        def acquire(self):
+            self.held = True
+            self.calls.append("acquire")
+
+        def release(self):
+            self.held = False
+            self.calls.append("release")
+
+    publisher = type("Publisher", (), {})()
+    publisher.impl = Impl()
+    forget_latched(publisher)
+    assert publisher.impl.latch is None and publisher.impl.calls == ["acquire", "release"]
+    forget_latched(FakePublisher("can_pose", None))  # no impl: nothing to do
