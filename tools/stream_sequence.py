@@ -13,23 +13,17 @@ import threading
 import numpy as np
 import rospy
 import tf2_ros
-from geometry_msgs.msg import TransformStamped
 from sensor_msgs.msg import PointCloud2
 
-from example_pcl import conversions, transforms
+from example_pcl import conversions, messages, transforms
 from example_pcl import scene_sequence as ss
 from example_pcl.msg import CanArray
 
 
 def camera_transform(frame, stamp):
     """geometry_msgs/TransformStamped table -> camera of a scene_sequence Frame at stamp."""
-    t, q = transforms.to_translation_quaternion_xyzw(transforms.invert(np.array(frame.truth["camera_from_table"])))
-    msg = TransformStamped()
-    msg.header.stamp, msg.header.frame_id, msg.child_frame_id = stamp, "table", "camera"
-    msg.transform.translation.x, msg.transform.translation.y, msg.transform.translation.z = (float(v) for v in t)
-    r = msg.transform.rotation
-    r.x, r.y, r.z, r.w = (float(v) for v in q)
-    return msg
+    return messages.transform_stamped(transforms.invert(np.array(frame.truth["camera_from_table"])), "table",
+                                      "camera", stamp)
 
 
 def main():

@@ -6,7 +6,7 @@ Message classes import without a master, so all of this is testable without one.
 """
 import dataclasses
 
-from geometry_msgs.msg import Pose, PoseArray, PoseStamped, Vector3
+from geometry_msgs.msg import Pose, PoseArray, PoseStamped, Transform, TransformStamped, Vector3
 from shape_msgs.msg import SolidPrimitive
 from std_msgs.msg import Header
 from visualization_msgs.msg import Marker, MarkerArray
@@ -49,6 +49,15 @@ def matrix_from_transform(transform_msg):
     """4x4 float64 of a geometry_msgs/Transform (e.g. tf2's lookup_transform(...).transform)."""
     t, q = transform_msg.translation, transform_msg.rotation
     return transforms.from_translation_quaternion_xyzw((t.x, t.y, t.z), (q.x, q.y, q.z, q.w))
+
+
+def transform_stamped(T_parent_from_child, parent, child, stamp=None):
+    """geometry_msgs/TransformStamped parent -> child of a 4x4 transform (the inverse of
+    matrix_from_transform), e.g. for a tf2 broadcaster."""
+    p = pose(T_parent_from_child)
+    transform = Transform(rotation=p.orientation)
+    transform.translation.x, transform.translation.y, transform.translation.z = p.position.x, p.position.y, p.position.z
+    return TransformStamped(header=header(parent, stamp), child_frame_id=child, transform=transform)
 
 
 def pose_message(T, frame_id, stamp=None):

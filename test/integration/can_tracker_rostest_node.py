@@ -24,7 +24,6 @@ import rosbag
 import rospy
 import rostest
 import tf2_ros
-from geometry_msgs.msg import TransformStamped
 from rosgraph_msgs.msg import Log
 from sensor_msgs.msg import PointCloud2
 from tf2_msgs.msg import TFMessage
@@ -77,13 +76,7 @@ class Recorder:
 def camera_transform(frame, stamp, T=None):
     """geometry_msgs/TransformStamped table -> camera of a Frame (or T_table_from_camera) at stamp (rospy.Time)."""
     T = transforms.invert(np.array(frame.truth["camera_from_table"])) if T is None else T
-    t, q = transforms.to_translation_quaternion_xyzw(T)
-    msg = TransformStamped()
-    msg.header.stamp, msg.header.frame_id, msg.child_frame_id = stamp, "table", "camera"
-    tr, rot = msg.transform.translation, msg.transform.rotation
-    tr.x, tr.y, tr.z = (float(v) for v in t)
-    rot.x, rot.y, rot.z, rot.w = (float(v) for v in q)
-    return msg
+    return messages.transform_stamped(T, "table", "camera", stamp)
 
 
 def frame_index(stamp, t0):

@@ -17,7 +17,7 @@ import rospy
 
 from example_pcl import scene as sc
 from example_pcl.find_can_client import FindCanClient
-from example_pcl.messages import matrix_from_pose, pose
+from example_pcl.messages import matrix_from_pose, transform_stamped
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[2] / "tools"))
 from netns_graph import stop_process  # noqa: E402
@@ -109,18 +109,8 @@ def pose_reaches_new_process(topic, timeout):
 def send_static_transforms(broadcaster, transforms):
     """Sends {(parent, child): 4x4 T_parent_from_child} on /tf_static in one message: the latched
     topic holds only the last message a process sent, so every frame goes in each one."""
-    from geometry_msgs.msg import TransformStamped
-
-    stamped = []
-    for (parent, child), T in transforms.items():
-        tf = TransformStamped()
-        tf.header.stamp, tf.header.frame_id, tf.child_frame_id = rospy.Time.now(), parent, child
-        p = pose(T)
-        tf.transform.translation.x, tf.transform.translation.y, tf.transform.translation.z = (
-            p.position.x, p.position.y, p.position.z)
-        tf.transform.rotation = p.orientation
-        stamped.append(tf)
-    broadcaster.sendTransform(stamped)
+    now = rospy.Time.now()
+    broadcaster.sendTransform([transform_stamped(T, parent, child, now) for (parent, child), T in transforms.items()])
 
 
 def pixel_rect(labels, label, qv=0.5, qu=0.5, half=4):

@@ -137,3 +137,14 @@ def test_table_marker_spans_the_extent_in_the_plane():
     m = messages.table_marker(T, (-0.2, 0.4, -0.1, 0.1), "camera")
     assert m.type == Marker.CUBE and (m.scale.x, m.scale.y) == pytest.approx((0.6, 0.2))
     assert (m.pose.position.x, m.pose.position.y, m.pose.position.z) == pytest.approx((0.1, 0.0, 1.0 - m.scale.z / 2))
+
+
+def test_transform_stamped_round_trips_through_matrix_from_transform():
+    """transform_stamped(T, parent, child, stamp) names parent and child, carries the stamp, and
+    matrix_from_transform gives T back."""
+    import rospy
+
+    T = transforms.from_translation_quaternion_xyzw((0.1, -0.2, 0.3), (0.0, 0.6, 0.0, 0.8))
+    msg = messages.transform_stamped(T, "base_link", "camera", rospy.Time(7))
+    assert (msg.header.frame_id, msg.child_frame_id, msg.header.stamp) == ("base_link", "camera", rospy.Time(7))
+    assert_allclose(messages.matrix_from_transform(msg.transform), T, atol=1e-12)
