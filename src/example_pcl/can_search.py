@@ -408,8 +408,9 @@ def verify(free, cx, cy, r, ctx):
     x, y, z = pts[:, 0], pts[:, 1], pts[:, 2]
     dist = np.hypot(x - cx, y - cy)
     in_run = (z >= z_lo) & (z < z_end)
+    facing_run = _facing(x, y, cx, cy, r, ctx) & in_run
     # The robust fit's outliers are another surface's points, not the can's side.
-    side = (np.abs(dist - r) <= min(r_eps, cutoff)) & _facing(x, y, cx, cy, r, ctx) & in_run
+    side = (np.abs(dist - r) <= min(r_eps, cutoff)) & facing_run
     n_side = int(np.count_nonzero(side))
     if n_side < c.min_fit_points:
         return None, f"{n_side} points on the fitted circle (min {c.min_fit_points})", None
@@ -436,7 +437,7 @@ def verify(free, cx, cy, r, ctx):
     if support is None:
         return None, why, None
     # The side's own points within 2 r_eps (not the robust fit's outliers), to see its radius change.
-    wall = (np.abs(dist - r) <= min(2 * r_eps, cutoff)) & _facing(x, y, cx, cy, r, ctx) & in_run
+    wall = (np.abs(dist - r) <= min(2 * r_eps, cutoff)) & facing_run
     why = _tapered(dist[wall], z[wall], sigma, ctx)
     if why:
         return None, why, claim()
@@ -451,8 +452,7 @@ def verify(free, cx, cy, r, ctx):
     # On an object, the points within 3 sigma of its surface are the support's.
     lowest = base_z - 0.5 * s.band_height if support == "table" else base_z + 3 * sigma
     mine = free.idx[near[(dist <= r + r_eps) & (z >= lowest) & (z <= top + s.band_height)]]
-    T_plane_from_can = transforms.from_translation_quaternion_xyzw((cx, cy, base_z), (0.0, 0.0, 0.0, 1.0))
-    can = Can(T_sensor_from_can=transforms.compose(ctx.T_sensor_from_plane, T_plane_from_can), radius=r,
+    can = Can(T_sensor_from_can=g.can_pose(ctx.T_sensor_from_plane, cx, cy, base_z), radius=r,
               height=height, rms_error=rms, arc_coverage=arc, n_points=len(mine), n_fit_points=n_side,
               center_plane=np.array([cx, cy]), shape_error=shape, indices=mine, support=support,
               base_seen=base_seen, support_height=float(base_z))
@@ -759,7 +759,7 @@ def _lying(points, rest, ctx):
     return can, ""
 
 
-def search(clusters, standing, T_sensor_from_plane, sensor_plane, config, search_config=None):
+def search(clusters, standing, T_sensor_from_plane, sensor_plane, config):
     """Every can in the clusters: (list of (cluster number, Can)), list of (cluster number,
     Rejection)), each Can's indices into that cluster's points.
 
@@ -767,8 +767,8 @@ def search(clusters, standing, T_sensor_from_plane, sensor_plane, config, search
     float64 (N, 3), every point standing on the table (occluders are looked for among them);
     T_sensor_from_plane: 4x4, the plane frame in the sensor frame (the Cans' poses are in the sensor
     frame); sensor_plane: the sensor in the plane frame (m); config: auto_finder.AutoConfig (the
-    band, fit and criterion); search_config: CylinderSearchConfig (default config.cylinders)."""
-    s = search_config or config.cylinders
+    band, fit and criterion; its .cylinders the CylinderSearchConfig)."""
+    s = config.cylinders
     s.validate()
     ctx = _Context(config=config, search=s, T_sensor_from_plane=np.asarray(T_sensor_from_plane, dtype=float),
                    sensor=np.asarray(sensor_plane, dtype=float),

@@ -315,11 +315,12 @@ def make_can_cloud(radius, height, n_around=48, n_along=16, rim_ratio=0.85):
     return np.concatenate(side + [rim]).astype(np.float32)
 
 
-def can_pose(T_sensor_from_plane, cx, cy):
-    """T_sensor_from_can (4x4 float64): the plane frame moved to (cx, cy, 0) (m, plane frame), so
-    its origin is the centre of the can's base on the table and its z the table normal."""
+def can_pose(T_sensor_from_plane, cx, cy, z=0.0):
+    """T_sensor_from_can (4x4 float64): the plane frame moved to (cx, cy, z) (m, plane frame), so
+    its origin is the centre of the can's base (z above the table: a can standing on something) and
+    its z the table normal."""
     shift = np.eye(4)
-    shift[:2, 3] = cx, cy
+    shift[:3, 3] = cx, cy, z
     return np.asarray(T_sensor_from_plane, dtype=float) @ shift
 
 

@@ -199,9 +199,7 @@ def _refit_can(pts, T_sensor_from_plane, T_plane_from_sensor, sensor_plane, can,
     shape = af.shape_error(side[fit.inliers], fit.cx, fit.cy, fit.radius, a.shape_bins)
     if shape > a.max_shape_error:
         raise PerceptionError(f"shape error {1e3 * shape:.2f} mm > {1e3 * a.max_shape_error:.2f} mm (not round)")
-    T_can = g.can_pose(T_sensor_from_plane, fit.cx, fit.cy)
-    if base:
-        T_can = T_can @ transforms.from_translation_quaternion_xyzw((0.0, 0.0, base), (0.0, 0.0, 0.0, 1.0))
+    T_can = g.can_pose(T_sensor_from_plane, fit.cx, fit.cy, base)
     rows, cols = np.divmod(flat, c1 - c0)
     indices = (rows + r0) * pts.shape[1] + (cols + c0)
     return Can(T_sensor_from_can=T_can, radius=fit.radius, height=height - base, rms_error=fit.rms_error,
@@ -323,11 +321,6 @@ class LocalFinder:
         self._known = None
         self._since_search = 0
         self.epoch += 1
-
-    @property
-    def knows_table(self):
-        """Whether a table is known (else the next frame runs the full search whatever asked)."""
-        return self._table is not None
 
     def process(self, xyz, search=True):
         """One organized frame (float32 (H, W, 3), any strides, sensor frame, m): a FrameFit. Raises
@@ -475,10 +468,7 @@ class BackgroundSearchFinder:
         found = self._finished()
         if found is not None:
             self.finder.adopt(found)
-        if self.config.search_period <= 1:
-            fit = self.finder.process(xyz)
-        else:
-            fit = self.finder.process(xyz, search=False)
+        fit = self.finder.process(xyz, search=self.config.search_period <= 1)
         timings = dict(fit.timings)
         if fit.reason and not fit.searched and self._pending is None:
             t = time.perf_counter()
