@@ -283,17 +283,17 @@ class CanTrackerNode:
             s = self.stats.summary(self.now())
         skipped = self.slot.skipped
         ms = lambda v: "n/a" if not np.isfinite(v) else f"{1e3 * v:.1f}"  # noqa: E731
+        tracks = len(self.last_update.tracks) if self.last_update else 0
         values = [("input rate (Hz)", f"{s['input_rate']:.1f}"), ("processed rate (Hz)", f"{s['processed_rate']:.1f}"),
                   ("received", str(s["received"])), ("processed", str(s["processed"])), ("skipped", str(skipped)),
                   ("dropped (bad input, no transform)", str(s["dropped"])),
                   ("latency p50 (ms)", ms(s["latency_p50"])), ("latency p90 (ms)", ms(s["latency_p90"])),
                   ("latency p99 (ms)", ms(s["latency_p99"])), ("compute mean (ms/frame)", ms(s["compute_mean"])),
                   ("compute p90 (ms/frame)", ms(s["compute_p90"])),
-                  ("tracks", str(len(self.last_update.tracks) if self.last_update else 0)),
+                  ("tracks", str(tracks)),
                   ("subscribed to the input", str(self._subscriber is not None or self._ros is None))]
         stages = [(f"stage {name} p50 / p90 (ms, frames)", f"{ms(p50)} / {ms(p90)} ({n})")
                   for name, (p50, p90, n) in s["stages"].items()]
-        tracks = values[-2][1]
         values += stages
         if self._ros is not None and self._subscriber is None:
             return 0, "idle: nobody subscribes to the outputs (~lazy)", values

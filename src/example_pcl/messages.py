@@ -183,8 +183,7 @@ def track_markers(tracks, ended_ids, frame_id, stamp=None):
                                            marker_id=t.id)]
     for marker_id in ended_ids:
         for ns in (CANS_NS, LABELS_NS):
-            markers.append(delete_marker(frame_id, ns=ns, marker_id=marker_id))
-            markers[-1].header = header(frame_id, stamp)
+            markers.append(delete_marker(frame_id, ns=ns, marker_id=marker_id, stamp=stamp))
     return MarkerArray(markers=markers)
 
 
