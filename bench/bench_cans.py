@@ -180,7 +180,7 @@ def main(argv=None):
     p.add_argument("--seeds", type=int, nargs="+", default=[100, 101, 102, 103, 104],
                    help="generator seeds (held out: development used 0-9)")
     p.add_argument("--repeats", type=int, default=3, help="searches per real scene and finder")
-    p.add_argument("--no-write", action="store_true", help="print only, do not write docs/can_search.md")
+    p.add_argument("--print-only", action="store_true", help="print only, do not write docs/can_search.md")
     args = p.parse_args(argv)
     tallies = {}
     generated(args.seeds, tallies)
@@ -211,7 +211,7 @@ def main(argv=None):
     text = (f"`bench/bench_cans.py` (seeds {', '.join(map(str, args.seeds))}; {args.repeats} searches per real scene "
             f"and finder), {machine_line()}\n\n" + table(header, rows) + ratio)
     print(text)
-    if not args.no_write:
+    if not args.print_only:
         write_section(DOC, "cans", text)
 
 

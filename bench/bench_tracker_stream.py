@@ -350,7 +350,7 @@ def main():
     parser.add_argument("--seconds", type=float, default=30.0, help="stream length per mode (default %(default)s)")
     parser.add_argument("--rate", type=float, default=30.0, help="Hz (default %(default)s)")
     parser.add_argument("--replay-frames", type=int, default=348, help="frames replayed per mode (default %(default)s)")
-    parser.add_argument("--no-write", action="store_true", help="print only; leave docs/ alone")
+    parser.add_argument("--print-only", action="store_true", help="print only; leave docs/ alone")
     parser.add_argument("--publish", metavar="LOG", help=argparse.SUPPRESS)  # the publisher process's role
     args = parser.parse_args()
     if args.publish:
@@ -373,7 +373,7 @@ def main():
         shutil.rmtree(tmp, ignore_errors=True)
     text = report(args, results, replayed, load)
     print(text)
-    if not args.no_write:
+    if not args.print_only:
         write_section(DOC, "tracker_stream", text)
     return 0
 

@@ -62,14 +62,11 @@ def table(header, rows):
     return "\n".join(lines)
 
 
-def write_section(path, name, text, title=None):
+def write_section(path, name, text):
     """Replaces the text between <!-- bench:NAME --> and <!-- /bench:NAME --> in the markdown file
-    `path` with text (atomically). A missing file is created with `title` (a heading) and the
-    markers; a file without the markers is left alone."""
+    `path` with text (atomically); a file without the markers is left alone."""
     path = pathlib.Path(path)
     start, end = f"<!-- bench:{name} -->", f"<!-- /bench:{name} -->"
-    if not path.exists() and title:
-        path.write_text(f"{title}\n\n{start}\n{end}\n")
     page = path.read_text() if path.exists() else ""
     pattern = re.compile(re.escape(start) + ".*?" + re.escape(end), re.S)
     if not pattern.search(page):

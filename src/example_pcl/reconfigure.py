@@ -59,19 +59,15 @@ def finder_from_values(finder, values):
 def param_names(finder):
     """Every name finder_from_values takes for a FinderConfig: the operator steps' scalar fields,
     then the automatic search's (``auto_``-prefixed where the names clash)."""
-    def scalar(config):
-        return [f.name for f in dataclasses.fields(config)
-                if not isinstance(getattr(config, f.name), (tuple, list)) and getattr(config, f.name) is not None
-                and not dataclasses.is_dataclass(getattr(config, f.name))]
-
-    operator = scalar(finder)
-    return operator + [AUTO_PREFIX + n if n in operator else n for n in scalar(finder.auto)]
+    operator = _scalar_names(finder)
+    return operator + [AUTO_PREFIX + n if n in operator else n for n in _scalar_names(finder.auto)]
 
 
 LOCAL_PREFIX = "local_"
 
 
 def _scalar_names(config):
+    """The names of config's fields that are single values (no tuples, lists, None or nested configs)."""
     return [f.name for f in dataclasses.fields(config)
             if not isinstance(getattr(config, f.name), (tuple, list)) and getattr(config, f.name) is not None
             and not dataclasses.is_dataclass(getattr(config, f.name))]

@@ -111,7 +111,7 @@ def _prism_planes(obj):
     return np.array(normals), np.array(offsets)
 
 
-def _cylinder(o, d, r, z0, z1, t_min, both_roots=True):
+def _cylinder(o, d, r, z0, z1, t_min):
     """Side of an upright cylinder about the local z axis (origin on it), z0 <= z <= z1."""
     a = d[:, 0] ** 2 + d[:, 1] ** 2
     b = 2 * (o[:, 0] * d[:, 0] + o[:, 1] * d[:, 1])
@@ -120,8 +120,6 @@ def _cylinder(o, d, r, z0, z1, t_min, both_roots=True):
     with np.errstate(divide="ignore", invalid="ignore"):
         sq = np.sqrt(np.where(disc >= 0, disc, np.nan))
         roots = np.stack([(-b - sq) / (2 * a), (-b + sq) / (2 * a)], axis=1)
-    if not both_roots:
-        roots = roots[:, :1]
     z = o[:, 2:3] + roots * d[:, 2:3]
     ok = np.isfinite(roots) & (roots > t_min) & (z >= z0) & (z <= z1)
     roots = np.where(ok, roots, np.inf)
