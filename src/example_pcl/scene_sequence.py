@@ -24,10 +24,11 @@ from typing import List, Optional, Tuple
 import numpy as np
 
 from example_pcl import scene as sc
+from example_pcl import scene_objects
 from example_pcl.errors import PerceptionError
 
 # Bumped when the rendering of a given spec changes, so stale cache files are not used.
-_CACHE_VERSION = 1
+_CACHE_VERSION = 2
 
 
 @dataclass(frozen=True)
@@ -36,7 +37,9 @@ class SequenceCan:
     ((frame, x, y), ...) base centre in the table frame (m) at those frames, sorted by frame; the
     can is at the first keyframe's position before it and at the last one's after it, and moves
     between consecutive keyframes with a cosine ease (at rest at each keyframe). first, last:
-    the frames (inclusive) it is on the table; last None = to the end."""
+    the frames (inclusive) it is on the table; last None = to the end. lying: the can lies on its
+    side (scene_objects' lying_can: height is its length, (x, y) the middle of its axis seen from
+    above), its axis along yaw (rad, table frame)."""
 
     truth_id: int
     radius: float
@@ -44,6 +47,8 @@ class SequenceCan:
     keyframes: Tuple[Tuple[int, float, float], ...]
     first: int = 0
     last: Optional[int] = None
+    lying: bool = False
+    yaw: float = 0.0
 
     def present(self, frame):
         """Whether the can is on the table in `frame`."""
@@ -102,8 +107,8 @@ class SequenceSpec:
         """Raises PerceptionError naming the first value that cannot make a sequence."""
         if not (int(self.n_frames) >= 1 and self.rate > 0):
             raise PerceptionError(f"a sequence needs n_frames >= 1 and rate > 0 Hz, got {self.n_frames}, {self.rate}")
-        if not self.cans or not all(self.cans[0].present(i) for i in range(self.n_frames)):
-            raise PerceptionError("the first can is the camera's aim: it must be present in every frame")
+        if not self.cans or self.cans[0].lying or not all(self.cans[0].present(i) for i in range(self.n_frames)):
+            raise PerceptionError("the first can is the camera's aim: it must stand upright in every frame")
         ids = [c.truth_id for c in self.cans]
         if len(set(ids)) != len(ids):
             raise PerceptionError(f"truth ids must be unique, got {ids}")
@@ -115,22 +120,27 @@ class SequenceSpec:
     def scene_spec(self, frame):
         """The scene.SceneSpec of `frame` (0-based)."""
         present = [c for c in self.cans if c.present(frame)]
+        lying = [scene_objects.Obj("lying_can", *c.position(frame), radius=c.radius, height=c.height, yaw=c.yaw)
+                 for c in present if c.lying]
         return sc.SceneSpec(
             camera_distance=self.camera_distance + frame * self.distance_step,
             tilt=self.tilt + frame * self.tilt_step, yaw=self.yaw + frame * self.yaw_step,
-            cans=[(*c.position(frame), c.radius, c.height) for c in present], boxes=list(self.boxes),
-            noise=self.noise, dropout=self.dropout, seed=None if self.seed is None else self.seed + frame)
+            cans=[(*c.position(frame), c.radius, c.height) for c in present if not c.lying], boxes=list(self.boxes),
+            noise=self.noise, dropout=self.dropout, seed=None if self.seed is None else self.seed + frame,
+            objects=lying)
 
     def truth_ids(self, frame):
-        """The truth ids of the cans present in `frame`, in the order of scene_spec(frame).cans."""
-        return [c.truth_id for c in self.cans if c.present(frame)]
+        """The truth ids of the cans present in `frame`: the upright ones in the order of
+        scene_spec(frame).cans, then the lying ones in the order of its objects."""
+        present = [c for c in self.cans if c.present(frame)]
+        return [c.truth_id for c in present if not c.lying] + [c.truth_id for c in present if c.lying]
 
 
 @dataclass(frozen=True, eq=False)
 class Frame:
     """One rendered frame: index; stamp (s); xyz float32 (480, 640, 3) camera frame (m, NaN
     holes); rgb uint8 (480, 640, 3) or None; truth: dict with ``cans`` (each ``id``,
-    ``base_center``, ``axis``, ``radius``, ``height``; camera frame, m), ``table`` and
+    ``base_center``, ``axis``, ``radius``, ``height``, ``lying``; camera frame, m), ``table`` and
     ``camera_from_table`` as in generate_scene's truth."""
 
     index: int
@@ -144,7 +154,9 @@ def render_frame(spec, index, with_rgb=False):
     """Renders frame `index` of the SequenceSpec: a Frame."""
     spec.validate()
     scene = sc.generate_scene(spec.scene_spec(index))
-    cans = [{"id": i, **c} for i, c in zip(spec.truth_ids(index), scene.truth["cans"])]
+    upright = [{**c, "lying": False} for c in scene.truth["cans"]]
+    lying = [{k: c[k] for k in ("base_center", "axis", "radius", "height", "lying")} for c in scene.truth["objects"]]
+    cans = [{"id": i, **c} for i, c in zip(spec.truth_ids(index), upright + lying)]
     truth = {"cans": cans, "table": scene.truth["table"], "camera_from_table": scene.truth["camera_from_table"]}
     return Frame(index=index, stamp=index / spec.rate, xyz=scene.xyz, rgb=scene.rgb if with_rgb else None,
                  truth=truth)
