@@ -746,11 +746,7 @@ def _lying(points, rest, ctx):
     if found is None:
         return None, why
     fit = found.fit
-    ux, uy, _ = found.direction
-    # The can's frame: z along the axis, x up from the table, y = z x x (right-handed).
-    R = np.array([[0.0, uy, ux], [0.0, -ux, uy], [1.0, 0.0, 0.0]])
-    T_plane_from_can = np.eye(4)
-    T_plane_from_can[:3, :3], T_plane_from_can[:3, 3] = R, found.start
+    T_plane_from_can = lying.plane_from_can(found.start, found.direction)
     middle = found.start + 0.5 * found.length * found.direction
     can = Can(T_sensor_from_can=transforms.compose(ctx.T_sensor_from_plane, T_plane_from_can), radius=fit.radius,
               height=found.length, rms_error=found.rms, arc_coverage=found.arc, n_points=int(found.mine.sum()),

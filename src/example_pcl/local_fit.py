@@ -13,10 +13,13 @@ sensor frame, metres, NaN holes):
    ``min_height`` and ``max_height`` above the table: Levenberg-Marquardt (geometry.fit_cylinder)
    from the previous circle on the side points, then auto_finder's criterion on radius, inlier
    fraction, rms residual, shape error and visible arc, plus a radius change of at most
-   ``max_radius_change``.
+   ``max_radius_change``. A lying can (can_search's, on its side) is refitted from the pixels of
+   its window within its radius plus ``region_margin`` of its previous axis, between its ends
+   grown by ``region_margin``: Gauss-Newton on its horizontal axis and radius (lying.py) from the
+   previous cylinder, then lying.judge_lying's criterion and the same radius change.
 3. **Scene changed?** On a coarse grid (every ``change_step``-th pixel), the points standing on
    the table (as auto_finder counts support: above ``min_height`` plus 3.5 sigma of depth noise,
-   below ``max_height``) that are in no can's region and were not already there at the last
+   below ``max_height``) that are in no can's region (a lying can's: along its axis) and were not already there at the last
    full search (that mask grown by ``change_dilation`` cells, for a slowly moving camera) are
    counted; ``min_new_points`` or more means something new stands there.
 
@@ -41,6 +44,7 @@ from scipy import ndimage
 from example_pcl import _native
 from example_pcl import auto_finder as af
 from example_pcl import geometry as g
+from example_pcl import lying
 from example_pcl import transforms
 from example_pcl.can import Can
 from example_pcl.errors import PerceptionError, require_positive
@@ -208,6 +212,67 @@ def _refit_can(pts, T_sensor_from_plane, T_plane_from_sensor, sensor_plane, can,
                base_seen=can.base_seen, support_height=base)
 
 
+def refit_lying_can(xyz, T_sensor_from_plane, can, config=LocalFitConfig(), viewpoint=(0.0, 0.0, 0.0), others=()):
+    """A lying can (Can with lying=True) refitted near where it was: a Can (sensor frame), as
+    refit_can does for an upright one. others: the other cans known in this frame (Can list,
+    sensor frame), whose points are not this one's. Raises PerceptionError saying why when it is
+    not there any more (too few points, no horizontal cylinder, or lying.judge_lying's criterion
+    fails)."""
+    T_plane_from_sensor = transforms.invert(T_sensor_from_plane)
+    sensor = transforms.apply(T_plane_from_sensor, _point(viewpoint))
+    return _refit_lying(_organized(xyz), T_sensor_from_plane, T_plane_from_sensor, sensor, can, config, others)
+
+
+def _refit_lying(pts, T_sensor_from_plane, T_plane_from_sensor, sensor_plane, can, config, others=()):
+    """refit_lying_can on a checked cloud (see _refit_can). The points are those of the window
+    within the previous radius plus region_margin of the previous axis and along it within
+    region_margin of its ends, in this frame's plane frame, less those within r_eps of another
+    can (a can standing near an end would otherwise lengthen it frame after frame: no cluster
+    separates them here); Gauss-Newton (lying.refine_lying_cylinder) starts from the previous
+    cylinder, then lying.judge_lying and a radius change of at most max_radius_change."""
+    c, a = config, config.auto
+    r0, r1, c0, c1 = pixel_window(can.indices, pts.shape, c.roi_margin)
+    window = _native.transform_cloud(pts[r0:r1, c0:c1], T_plane_from_sensor).reshape(-1, 3)
+    start = transforms.apply(T_plane_from_sensor, can.base_center)
+    u = T_plane_from_sensor[:3, :3] @ can.axis
+    u = u[:2] / max(float(np.hypot(u[0], u[1])), 1e-9)  # the table may have tilted a little: seen from above
+    # NaN compares False: holes fall out of the region without a check of their own.
+    dx, dy, dz = window[:, 0] - start[0], window[:, 1] - start[1], window[:, 2] - start[2]
+    along = dx * u[0] + dy * u[1]
+    across = -dx * u[1] + dy * u[0]
+    region = (along >= -c.region_margin) & (along <= can.height + c.region_margin)
+    region &= across * across + dz * dz <= (can.radius + c.region_margin) ** 2
+    region &= (window[:, 2] > a.min_height) & (window[:, 2] <= a.max_height)
+    flat = np.flatnonzero(region)
+    if len(others):
+        flat = flat[~in_can_regions(window[flat], T_plane_from_sensor, others, a.r_eps)]
+    if len(flat) < a.min_fit_points:
+        raise PerceptionError(f"{len(flat)} point(s) where the lying can was (min {a.min_fit_points})")
+    points = window[flat].astype(float)
+    offset = np.ones(len(points)) @ points / len(points) - sensor_plane
+    sigma = a.noise_coefficient * float(offset @ offset)
+    r_eps = max(a.r_eps, a.r_eps_sigmas * sigma)
+    s = a.cylinders
+    fit = lying.refine_lying_cylinder(points, start, u, can.radius, r_eps, a.max_radius, s.lying_gap + 3 * sigma,
+                                      a.fit_iterations, c.max_fit_points)
+    found, why = lying.judge_lying(points, fit, r_eps, sigma, a, s)
+    if found is None:
+        raise PerceptionError(why)
+    if abs(found.fit.radius - can.radius) > c.max_radius_change:
+        raise PerceptionError(f"radius {1e3 * found.fit.radius:.1f} mm (was {1e3 * can.radius:.1f} mm)")
+    begin, direction = found.start, found.direction
+    if direction[:2] @ u < 0:  # the same end as before is the can's origin, so its pose does not jump
+        begin, direction = begin + found.length * direction, -direction
+    T_can = transforms.compose(T_sensor_from_plane, lying.plane_from_can(begin, direction))
+    middle = begin + 0.5 * found.length * direction
+    rows, cols = np.divmod(flat[found.mine], c1 - c0)
+    indices = (rows + r0) * pts.shape[1] + (cols + c0)
+    return dataclasses.replace(can, T_sensor_from_can=T_can, radius=found.fit.radius, height=found.length,
+                               rms_error=found.rms, arc_coverage=found.arc, n_points=int(found.mine.sum()),
+                               n_fit_points=int(found.inliers.sum()), center_plane=middle[:2].copy(),
+                               shape_error=found.shape_error, indices=indices)
+
+
 # --- scene change ---------------------------------------------------------------------------------
 
 
@@ -226,14 +291,23 @@ def standing_grid(xyz, T_sensor_from_plane, config=LocalFitConfig(), viewpoint=(
 
 
 def in_can_regions(grid, T_plane_from_sensor_cans, cans, margin):
-    """bool mask of plane-frame points (..., 3) within radius + margin (m) of any can's axis.
-    T_plane_from_sensor_cans: 4x4 taking the cans' sensor-frame base centres into the plane frame."""
+    """bool mask of plane-frame points (..., 3) within radius + margin (m) of any can's axis seen
+    from above (a lying can's: of its axis between its ends, each end grown by margin too).
+    T_plane_from_sensor_cans: 4x4 taking the cans' sensor-frame poses into the plane frame."""
     inside = np.zeros(grid.shape[:-1], bool)
     R, t = T_plane_from_sensor_cans[:3, :3], T_plane_from_sensor_cans[:3, 3]
     with np.errstate(invalid="ignore"):
         for can in cans:
             cx, cy, _ = R @ np.asarray(can.base_center, dtype=float) + t
-            inside |= (grid[..., 0] - cx) ** 2 + (grid[..., 1] - cy) ** 2 <= (can.radius + margin) ** 2
+            dx, dy = grid[..., 0] - cx, grid[..., 1] - cy
+            if not can.lying:
+                inside |= dx * dx + dy * dy <= (can.radius + margin) ** 2
+                continue
+            ux, uy, _ = R @ np.asarray(can.axis, dtype=float)
+            norm = max(float(np.hypot(ux, uy)), 1e-9)
+            along = (dx * ux + dy * uy) / norm
+            inside |= ((along >= -margin) & (along <= can.height + margin)
+                       & (np.abs(dy * ux - dx * uy) / norm <= can.radius + margin))
     return inside
 
 
@@ -247,6 +321,14 @@ def new_standing_points(standing, grid, T_plane_from_sensor, cans, known, config
             known = ndimage.binary_dilation(known, iterations=int(config.change_dilation))
         new &= ~known
     return int(np.count_nonzero(new))
+
+
+def footprint_center(can):
+    """The middle of a can's footprint, sensor frame (m): the base centre of an upright can, the
+    middle of a lying can's axis (which does not depend on which end its pose starts from)."""
+    if can.lying:
+        return can.base_center + 0.5 * can.height * can.axis
+    return can.base_center
 
 
 # --- frame after frame ----------------------------------------------------------------------------
@@ -354,12 +436,14 @@ class LocalFinder:
         """Takes a SceneSearch (of this frame or an earlier one) as the seeds of the next refit: its
         table, its cans and its scene-change mask. A can that the refits since that frame have
         followed (an upright can of the search whose base centre is within its radius of a
-        refitted one) keeps its fresher fit, so a can moved meanwhile is looked for where it is."""
+        refitted one, or a lying can whose axis' middle is) keeps its fresher fit, so a can moved
+        meanwhile is looked for where it is."""
         cans = []
         for can in found.cans:
-            near = [c for c in self._cans if not c.lying and not can.lying
-                    and np.linalg.norm(c.base_center - can.base_center) < can.radius]
-            cans.append(min(near, key=lambda c: np.linalg.norm(c.base_center - can.base_center)) if near else can)
+            here = footprint_center(can)
+            near = [c for c in self._cans if c.lying == can.lying
+                    and np.linalg.norm(footprint_center(c) - here) < can.radius]
+            cans.append(min(near, key=lambda c: np.linalg.norm(footprint_center(c) - here)) if near else can)
         self._take(dataclasses.replace(found, cans=cans))
 
     def _take(self, found):
@@ -386,18 +470,23 @@ class LocalFinder:
         t = time.perf_counter()
         T_plane_from_sensor = transforms.invert(T)
         sensor = transforms.apply(T_plane_from_sensor, self.viewpoint)
-        cans, lost = [], ""
-        for k, can in enumerate(self._cans):
-            if can.lying:  # refit_can fits upright cans; a lying one is kept until the next search
-                cans.append(can)
-                continue
+        lost = ""
+        # Upright cans first: a lying can's refit leaves their points out (_refit_lying).
+        refitted = {}
+        for k in sorted(range(len(self._cans)), key=lambda k: self._cans[k].lying):
+            can = self._cans[k]
             try:
-                cans.append(_refit_can(pts, T, T_plane_from_sensor, sensor, can, c))
+                if can.lying:
+                    others = [refitted.get(j, other) for j, other in enumerate(self._cans) if j != k]
+                    refitted[k] = _refit_lying(pts, T, T_plane_from_sensor, sensor, can, c, others)
+                else:
+                    refitted[k] = _refit_can(pts, T, T_plane_from_sensor, sensor, can, c)
             except PerceptionError as e:
                 lost = lost or f"can {k} lost: {e}"
                 if not defer:
                     timings["cans"] = time.perf_counter() - t
                     return lost, False
+        cans = [refitted[k] for k in sorted(refitted)]
         timings["cans"] = time.perf_counter() - t
         t = time.perf_counter()
         standing, grid = standing_grid(pts, T, c, self.viewpoint)

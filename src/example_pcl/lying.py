@@ -7,7 +7,9 @@ zc) from which its side points lie at the radius r. :func:`fit_lying_cylinder` s
 (a linear circle fit of the points projected onto the plane perpendicular to each direction: the
 right direction collapses the side onto one circle, another one spreads it into an ellipse), then
 refines (theta, d, zc, r) by Gauss-Newton on the points near the cylinder. :func:`lying_can`
-judges the fit like an upright can's side (docs/can_search.md, "Lying cans").
+judges the fit like an upright can's side (docs/can_search.md, "Lying cans"). The tracker's
+per-frame refit (example_pcl.local_fit) starts the refinement from the previous frame's cylinder
+instead (:func:`refine_lying_cylinder`) and judges it the same way (:func:`judge_lying`).
 """
 from dataclasses import dataclass
 
@@ -102,8 +104,36 @@ def fit_lying_cylinder(points, r_eps, min_radius, max_radius, max_gap, direction
             best = fit
     if best is None:
         return None
-    # The ends' discs lie inside the circle near its rim and pull it smaller: refit without the
-    # slabs of r_eps at both ends of the cylinder's axial extent.
+    return _without_ends(q, z, origin, best, r_eps, iterations, max_radius, max_gap)
+
+
+def refine_lying_cylinder(points, start, direction, radius, r_eps, max_radius, max_gap, iterations=15,
+                          max_points=300):
+    """A horizontal cylinder refined from a previous one (a LyingFit) or None, as fit_lying_cylinder
+    but without its scan: points (float64 (N, 3), plane frame, m); start (3,): a point of the
+    previous axis (its z the axis' height), direction (2,) or (3,): the axis seen from above (need not
+    be unit), radius (m). The refined direction keeps the previous one's sense."""
+    if len(points) > max_points:
+        points = points[:: int(np.ceil(len(points) / max_points))]
+    if len(points) < 4:
+        return None
+    origin = points[:, :2].mean(axis=0)
+    q = points[:, :2] - origin
+    theta = float(np.arctan2(direction[1], direction[0]))
+    rel = np.asarray(start[:2], dtype=float) - origin
+    offset = -rel[0] * np.sin(theta) + rel[1] * np.cos(theta)
+    best = _refine(q, points[:, 2], theta, offset, float(start[2]), float(radius), r_eps, iterations,
+                   np.ones(len(points), bool), max_radius, max_gap)
+    if best is None:
+        return None
+    return _without_ends(q, points[:, 2], origin, best, r_eps, iterations, max_radius, max_gap)
+
+
+def _without_ends(q, z, origin, best, r_eps, iterations, max_radius, max_gap):
+    """The LyingFit of a refined (theta, d, zc, r, rms, n), refined once more without the ends.
+
+    The ends' discs lie inside the circle near its rim and pull it smaller: refit without the
+    slabs of r_eps at both ends of the cylinder's axial extent."""
     t = best[0]
     axial = q[:, 0] * np.cos(t) + q[:, 1] * np.sin(t)
     lo, hi = end_positions(axial, np.hypot(-q[:, 0] * np.sin(t) + q[:, 1] * np.cos(t) - best[1], z - best[2]),
@@ -191,6 +221,13 @@ def lying_can(points, r_eps, sigma, config, search):
         return None, f"lying: {100 * top:.1f} cm high, more than a lying can's {200 * c.max_radius:.0f} cm"
     fit = fit_lying_cylinder(points, r_eps, c.min_radius, c.max_radius, s.lying_gap + 3 * sigma, s.lying_directions,
                              c.fit_iterations, s.fit_points)
+    return judge_lying(points, fit, r_eps, sigma, config, search)
+
+
+def judge_lying(points, fit, r_eps, sigma, config, search):
+    """A horizontal cylinder fitted to points (a LyingFit, or None: none fitted) judged as a lying
+    can, as lying_can judges its own fit: (LyingCan, "") or (None, why not). Arguments as lying_can's."""
+    c, s = config, search
     if fit is None:
         return None, "lying: no horizontal cylinder fits its points"
     r = fit.radius
@@ -235,6 +272,16 @@ def lying_can(points, r_eps, sigma, config, search):
     ux, uy = fit.direction
     return LyingCan(fit=fit, rms=rms, start=fit.point_on_axis(a_lo), direction=np.array([ux, uy, 0.0]), length=length,
                     inliers=side, mine=body, shape_error=shape, arc=arc), ""
+
+
+def plane_from_can(start, direction):
+    """T_plane_from_can (4x4 float64) of a lying can: origin `start` (m, plane frame: the centre of
+    one end), z along `direction` (unit, horizontal), x up from the table, y = z x x."""
+    ux, uy = direction[0], direction[1]
+    T = np.eye(4)
+    T[:3, :3] = np.array([[0.0, uy, ux], [0.0, -ux, uy], [1.0, 0.0, 0.0]])
+    T[:3, 3] = start
+    return T
 
 
 def _bulging(axial, rho, a_lo, length, sigma, s):
