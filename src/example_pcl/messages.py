@@ -170,15 +170,18 @@ def label_marker(text, position, frame_id, stamp=None, ns=LABELS_NS, marker_id=0
 
 
 def track_markers(tracks, ended_ids, frame_id, stamp=None):
-    """visualization_msgs/MarkerArray of tracks: per track a CYLINDER (namespace CANS_NS) and a label
-    "can 3, r 33 mm" above it (LABELS_NS), both with marker id = track id, greyed while the track
-    coasts unseen; then a DELETE of both for every id in ended_ids."""
+    """visualization_msgs/MarkerArray of tracks: per track a CYLINDER along its axis (namespace
+    CANS_NS) and a label "can 3, r 33 mm" above it (LABELS_NS; above a lying can's middle), both
+    with marker id = track id, greyed while the track coasts unseen; then a DELETE of both for
+    every id in ended_ids."""
     markers = []
     for t in tracks:
-        cylinder = can_marker(t.pose, t.radius, t.height, frame_id, stamp, ns=CANS_NS, marker_id=t.id)
+        T = t.pose
+        cylinder = can_marker(T, t.radius, t.height, frame_id, stamp, ns=CANS_NS, marker_id=t.id)
         if not t.seen:
             cylinder.color.r = cylinder.color.g = cylinder.color.b = 0.6
-        top = t.base_center + (t.height + 0.03) * t.axis
+        # A lying can's pose has x up from the table (tracking.Track.pose).
+        top = t.center + (t.radius + 0.03) * T[:3, 0] if t.lying else t.base_center + (t.height + 0.03) * t.axis
         markers += [cylinder, label_marker(f"can {t.id}, r {1e3 * t.radius:.0f} mm", top, frame_id, stamp,
                                            marker_id=t.id)]
     for marker_id in ended_ids:

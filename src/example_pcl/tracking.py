@@ -3,15 +3,20 @@ assignment), knows nothing of ROS.
 
 :class:`CanTracker` takes each frame's detections - any objects with ``base_center`` (float (3,),
 m), ``axis`` (unit (3,)), ``radius``, ``height`` (m), ``rms_error`` (m), ``arc_coverage`` (rad) and
-``n_fit_points``, as example_pcl.can.Can has - all in one frame (the sensor's or a fixed
+``n_fit_points`` (and ``lying``, false when absent), as example_pcl.can.Can has - all in one frame (the sensor's or a fixed
 target frame), with the frame's stamp (s), and keeps one :class:`Track` per can:
 
-* **Association.** Each track's base centre is predicted to the new stamp; detections are
+* **Association.** Each track's centre is predicted to the new stamp; detections are
   assigned to tracks by minimum total distance (``scipy.optimize.linear_sum_assignment``) among
   the pairs within ``gate_distance`` of the prediction whose radii differ by at most
-  ``radius_gate``. An unassigned detection starts a new track with a new id (ids count up from
-  1 and are never reused, not even after a reset).
-* **Smoothing.** The base centre runs two constant-velocity Kalman filters (each with one 2x2
+  ``radius_gate`` and that both lie or both stand. An unassigned detection starts a new track
+  with a new id (ids count up from 1 and are never reused, not even after a reset). The centre
+  is an upright can's base centre, and the middle of a lying can's axis (a detection with
+  ``lying`` true: base_center one end, axis along it, height its length), which does not
+  depend on the end its pose starts from; a lying detection never continues an upright track
+  nor the reverse (a can that falls over, or is stood up, is a new track: it is grasped
+  differently, and a lying can beside an upright one cannot take its id).
+* **Smoothing.** The centre runs two constant-velocity Kalman filters (each with one 2x2
   covariance shared by x, y and z; measurement noise ``position_noise``): a *steady* one
   (white acceleration ``accel_noise``: heavy smoothing, a static can's jitter well below the
   detections') and an *agile* one (``max_accel``: follows a pushed can closely). The track
@@ -46,7 +51,7 @@ class TrackerConfig:
     """Parameters of CanTracker (see the module docstring).
 
     max_missed (frames): a track unseen this many consecutive frames is dropped.
-    gate_distance (m): a detection further than this from a track's predicted base centre is
+    gate_distance (m): a detection further than this from a track's predicted centre is
     not that can; radius_gate (m): nor is one whose radius differs by more.
     position_noise (m): std of a detection's base centre; accel_noise, max_accel (m/s^2): std
     of the white acceleration of the steady and the agile filter; init_speed (m/s): std of a
@@ -85,8 +90,10 @@ class TrackerConfig:
 
 @dataclass(eq=False)
 class Track:
-    """One tracked can, in the frame of the detections. id; base_center (m), velocity (m/s):
-    float64 (3,), filtered; axis: unit (3,); radius, height (m): smoothed; age (frames since it
+    """One tracked can, in the frame of the detections. id; base_center (m): float64 (3,), the
+    origin of its pose (a lying can's: one end); velocity (m/s): float64 (3,) of its centre;
+    both filtered; axis: unit (3,); radius, height (m): smoothed; lying: whether the can lies on
+    its side (height its length); age (frames since it
     started, 0 on its first), hits (frames seen), missed (consecutive frames unseen, 0 when seen
     this frame), misses (frames unseen in all); confidence (0..1); detection: the last detection
     assigned to it (its rms_error, arc_coverage, n_fit_points, indices, ...); moving: whether
@@ -108,11 +115,21 @@ class Track:
     agile: "_ConstantVelocity" = field(default=None, repr=False)
     mean_innovation: np.ndarray = field(default_factory=lambda: np.zeros(3), repr=False)  # steady filter's (m)
     moving: bool = False
+    lying: bool = False
+
+    @property
+    def center(self):
+        """The point the filters track (m): the base centre, or the middle of a lying can's axis."""
+        return self.base_center + 0.5 * self.height * self.axis if self.lying else self.base_center.copy()
 
     @property
     def pose(self):
         """T_frame_from_can (4x4 float64): origin at base_center, z along axis, x the frame's x
-        projected onto the base (geometry.plane_frame)."""
+        projected onto the base (geometry.plane_frame); a lying can's x is its last detection's
+        (up from the table, as can_search poses it) when that has a T_sensor_from_can."""
+        T = getattr(self.detection, "T_sensor_from_can", None) if self.lying else None
+        if T is not None:
+            return g.plane_frame(self.axis, self.base_center, sensor_x=np.asarray(T)[:3, 0])
         return g.plane_frame(self.axis, self.base_center)
 
     def snapshot(self):
@@ -168,7 +185,7 @@ class CanTracker:
 
     def update(self, detections, stamp):
         """One frame: detections (sequence of objects with base_center, axis, radius, height,
-        rms_error, arc_coverage, n_fit_points; frame of the tracks) seen at stamp (s). Returns
+        rms_error, arc_coverage, n_fit_points, optionally lying; frame of the tracks) seen at stamp (s). Returns
         a TrackerUpdate."""
         c = self.config
         stamp = float(stamp)
@@ -206,7 +223,7 @@ class CanTracker:
             matched_tracks.add(k)
         for k, track in enumerate(self._tracks):
             if k not in matched_tracks:
-                track.base_center, track.velocity = track.steady.position.copy(), track.steady.velocity.copy()
+                _place(track)
                 track.age += 1
                 track.missed += 1
                 track.misses += 1
@@ -218,10 +235,10 @@ class CanTracker:
                 alive.append(track)
         for i, m in enumerate(measured):
             if i not in assignment:
-                track = Track(id=self._next_id, base_center=m["center"].copy(), velocity=np.zeros(3),
+                track = Track(id=self._next_id, base_center=m["base"].copy(), velocity=np.zeros(3),
                               axis=m["axis"].copy(), radius=m["radius"], height=m["height"], detection=detections[i],
                               steady=_ConstantVelocity(m["center"], c.position_noise, c.init_speed),
-                              agile=_ConstantVelocity(m["center"], c.position_noise, c.init_speed))
+                              agile=_ConstantVelocity(m["center"], c.position_noise, c.init_speed), lying=m["lying"])
                 self._next_id += 1
                 alive.append(track)
                 started.append(track.id)
@@ -245,6 +262,7 @@ class CanTracker:
         radii = np.array([m["radius"] for m in measured])
         allowed = (cost <= c.gate_distance) & (
             np.abs(np.array([t.radius for t in self._tracks])[:, None] - radii[None, :]) <= c.radius_gate)
+        allowed &= np.array([t.lying for t in self._tracks])[:, None] == np.array([m["lying"] for m in measured])
         big = 1e6
         rows, cols = linear_sum_assignment(np.where(allowed, cost, big))
         return [(int(k), int(i)) for k, i in zip(rows, cols) if allowed[k, i]]
@@ -263,7 +281,6 @@ class CanTracker:
         if track.moving:
             track.steady = track.agile.copy()
             track.mean_innovation = np.zeros(3)
-        track.base_center, track.velocity = track.steady.position.copy(), track.steady.velocity.copy()
         track.hits += 1
         track.age += 1
         track.missed = 0
@@ -275,6 +292,7 @@ class CanTracker:
         track.radius += n * (m["radius"] - track.radius)
         track.height += n * (m["height"] - track.height)
         track.detection = detection
+        _place(track)
 
     def _confidence(self, track):
         c = self.config
@@ -321,8 +339,16 @@ class _ConstantVelocity:
         return innovation, S
 
 
+def _place(track):
+    """Sets a track's base centre and velocity from its steady filter (which tracks its centre)."""
+    position = track.steady.position
+    track.base_center = position - 0.5 * track.height * track.axis if track.lying else position.copy()
+    track.velocity = track.steady.velocity.copy()
+
+
 def _measurement(detection, index):
-    """The numbers the tracker uses from one detection, validated."""
+    """The numbers the tracker uses from one detection, validated: base (its base centre), center
+    (what the filters track: Track.center), axis (unit), radius, height, lying."""
     try:
         center = np.asarray(detection.base_center, dtype=float).reshape(3)
         axis = np.asarray(detection.axis, dtype=float).reshape(3)
@@ -332,4 +358,7 @@ def _measurement(detection, index):
     norm = np.linalg.norm(axis)
     if not (np.isfinite(center).all() and np.isfinite(axis).all() and norm > 0 and radius > 0 and height > 0):
         raise PerceptionError(f"detection {index} has a non-finite centre or axis, or a non-positive size")
-    return {"center": center, "axis": axis / norm, "radius": radius, "height": height}
+    axis = axis / norm
+    lying = bool(getattr(detection, "lying", False))
+    middle = center + 0.5 * height * axis if lying else center
+    return {"base": center, "center": middle, "axis": axis, "radius": radius, "height": height, "lying": lying}
