@@ -24,7 +24,10 @@ target frame), with the frame's stamp (s), and keeps one :class:`Track` per can:
   (gain ``lag_gain``) is more than ``lag_sigmas`` of its standard deviations from zero - the
   steady filter lags, the can is moving - the steady filter takes the agile one's state and
   covariance, and so follows at once. Axis, radius and height are running means for the first
-  frames, then exponential with gains ``axis_gain`` and ``size_gain``.
+  frames, then exponential with gains ``axis_gain`` and ``size_gain``; the axis, like the
+  centre, follows at once (takes the detection's) when the exponential mean of its innovations
+  (gain ``lag_gain``) is more than ``lag_sigmas`` of its standard deviations (from ``axis_noise``)
+  from zero: a camera turning, or a lying can turned, is followed instead of lagged behind.
 * **Ending.** A track not seen for ``max_missed`` consecutive frames is dropped (reported in
   TrackerUpdate.ended on that frame). Unseen tracks coast on their prediction meanwhile.
 * **Confidence** (0..1) = min(1, hits / confirm_hits) * hits / (hits + misses) *
@@ -59,7 +62,8 @@ class TrackerConfig:
     lag_sigmas: how far (in standard deviations) that mean may stray before the can counts as
     moving.
     axis_gain, size_gain (0..1): weight of a new measurement of the axis, and of the radius
-    and height, once the running mean has seen 1/gain frames.
+    and height, once the running mean has seen 1/gain frames; axis_noise (rad): std of a
+    detection's axis direction, for the axis' lag test.
     max_gap (s): a longer time between frames resets the tracks' velocities.
     confirm_hits (frames), rms_limit (m): of the confidence rule.
     """
@@ -75,6 +79,7 @@ class TrackerConfig:
     lag_sigmas: float = 2.0
     axis_gain: float = 0.1
     size_gain: float = 0.1
+    axis_noise: float = 0.01
     max_gap: float = 1.0
     confirm_hits: int = 3
     rms_limit: float = 0.006
@@ -82,7 +87,7 @@ class TrackerConfig:
     def validate(self):
         """Raises PerceptionError naming the first value that makes no sense."""
         require_positive(self, ("max_missed", "gate_distance", "radius_gate", "position_noise", "accel_noise",
-                                "max_accel", "init_speed", "lag_sigmas", "max_gap", "confirm_hits", "rms_limit"))
+                                "max_accel", "init_speed", "lag_sigmas", "axis_noise", "max_gap", "confirm_hits", "rms_limit"))
         for name in ("axis_gain", "size_gain", "lag_gain"):
             if not 0 < getattr(self, name) <= 1:
                 raise PerceptionError(f"TrackerConfig.{name} must be in (0, 1], got {getattr(self, name)}")
@@ -114,6 +119,7 @@ class Track:
     steady: "_ConstantVelocity" = field(default=None, repr=False)
     agile: "_ConstantVelocity" = field(default=None, repr=False)
     mean_innovation: np.ndarray = field(default_factory=lambda: np.zeros(3), repr=False)  # steady filter's (m)
+    mean_axis_innovation: np.ndarray = field(default_factory=lambda: np.zeros(3), repr=False)  # (unit vector)
     moving: bool = False
     lying: bool = False
 
@@ -136,7 +142,8 @@ class Track:
         """A copy of the track as it is now, which later updates do not change."""
         return dataclasses.replace(self, base_center=self.base_center.copy(), velocity=self.velocity.copy(),
                                    axis=self.axis.copy(), steady=None, agile=None,
-                                   mean_innovation=self.mean_innovation.copy())
+                                   mean_innovation=self.mean_innovation.copy(),
+                                   mean_axis_innovation=self.mean_axis_innovation.copy())
 
     @property
     def seen(self):
@@ -286,8 +293,14 @@ class CanTracker:
         track.missed = 0
         n = max(1.0 / track.hits, c.axis_gain)
         axis = m["axis"] if m["axis"] @ track.axis >= 0 else -m["axis"]
-        track.axis = track.axis + n * (axis - track.axis)
-        track.axis /= np.linalg.norm(track.axis)
+        # As the centre's: innovations across the axis (2 degrees of freedom) that do not average out.
+        track.mean_axis_innovation = (1 - w) * track.mean_axis_innovation + w * (axis - track.axis)
+        lag = float(track.mean_axis_innovation @ track.mean_axis_innovation) / (c.axis_noise ** 2 * w / (2 - w)) / 2.0
+        if lag > c.lag_sigmas ** 2:
+            track.axis, track.mean_axis_innovation = axis.copy(), np.zeros(3)
+        else:
+            track.axis = track.axis + n * (axis - track.axis)
+            track.axis /= np.linalg.norm(track.axis)
         n = max(1.0 / track.hits, c.size_gain)
         track.radius += n * (m["radius"] - track.radius)
         track.height += n * (m["height"] - track.height)
