@@ -2,7 +2,8 @@
 
 Each entry: (name, type, default, min, max, description). Names are AutoConfig's field names
 (example_pcl.auto_finder) except where find_can's operator steps already use the name: those get
-an ``auto_`` prefix. Lengths in metres, angles in radians; test_reconfigure checks the defaults
+an ``auto_`` prefix; the group lying holds its CylinderSearchConfig's (AutoConfig.cylinders)
+fields named lying_*. Lengths in metres, angles in radians; test_reconfigure checks the defaults
 against AutoConfig's.
 """
 
@@ -48,6 +49,14 @@ GROUPS = {
         ("max_shape_error", "double", 0.001, 0.0, 0.05, "rms of the arcs' mean residuals at most (m)"),
         ("min_arc", "double", 1.8, 0.0, 6.2832, "the side is seen around at least this (rad)"),
     ],
+    # The cylinder search's lying step (can_search.CylinderSearchConfig, example_pcl.lying).
+    "lying": [
+        ("lying_gap", "double", 0.01, 0.0, 0.1, "a lying can's axis is one radius above the table to within this (m)"),
+        ("lying_directions", "int", 36, 4, 360, "axis directions scanned over 180 degrees"),
+        ("lying_join_angle", "double", 0.1, 0.0, 1.57, "two lying parts are one can within this angle (rad)"),
+        ("lying_join_offset", "double", 0.01, 0.0, 0.1, "and each axis this near the other's middle (m)"),
+        ("lying_join_gap", "double", 0.15, 0.0, 1.0, "and at most this far apart along it (m)"),
+    ],
 }
 
 # AutoConfig field of each prefixed name.
@@ -60,7 +69,8 @@ SEARCHES = ("cylinders", "clusters")
 
 
 def add_can_search(gen, level=0):
-    """Adds the groups table, objects, fit and criterion (and the clustering enum) to a generator."""
+    """Adds the groups table, objects, fit, criterion and lying (and the clustering and search
+    enums) to a generator."""
     from dynamic_reconfigure.parameter_generator_catkin import int_t, double_t, str_t
 
     types = {"int": int_t, "double": double_t}

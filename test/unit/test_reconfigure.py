@@ -97,3 +97,38 @@ def test_can_tracker_cfg_defaults_are_the_dataclasses_defaults():
             new = value - 1 if isinstance(value, int) else value * 0.99
         _, _, log = tracker_from_values(LocalFitConfig(), TrackerConfig(), dict(defaults, **{name: new}))
         assert len(log) == 1 and log[0].startswith(name + " "), (name, log)
+
+
+def test_lying_group_sets_the_cylinder_searchs_lying_step():
+    """FindCan.cfg's group lying holds the lying step's fields of AutoConfig.cylinders (lying_*), each
+    within its range, and setting one reaches that field alone (for the tracker too)."""
+    from example_pcl.local_fit import LocalFitConfig
+    from example_pcl.reconfigure import tracker_from_values
+    from example_pcl.tracking import TrackerConfig
+
+    lying = {n for n, group in _groups().items() if group == "lying"}
+    cylinders = AutoConfig().cylinders
+    assert lying == {f.name for f in dataclasses.fields(cylinders) if f.name.startswith("lying_")}
+    for name in lying:
+        assert generated.min[name] <= getattr(cylinders, name) <= generated.max[name]
+    updated, log = finder_from_values(FinderConfig(), cfg_values(lying_gap=0.02, lying_directions=72))
+    assert (updated.auto.cylinders.lying_gap, updated.auto.cylinders.lying_directions) == (0.02, 72)
+    assert sorted(log) == ["lying_directions 36 -> 72", "lying_gap 0.01 -> 0.02"]
+    assert dataclasses.replace(updated.auto, cylinders=cylinders) == AutoConfig()
+    local, _, log = tracker_from_values(LocalFitConfig(), TrackerConfig(), {"lying_join_gap": 0.2})
+    assert local.auto.cylinders.lying_join_gap == 0.2 and log == ["lying_join_gap 0.15 -> 0.2"]
+    with pytest.raises(PerceptionError, match="lying_directions"):
+        finder_from_values(FinderConfig(), {"lying_directions": 0})
+
+
+def _groups():
+    """{parameter name: its group's name} of FindCan.cfg."""
+    out = {}
+
+    def walk(group):
+        for p in group["parameters"]:
+            out[p["name"]] = group["name"]
+        for sub in group["groups"]:
+            walk(sub)
+    walk(generated.config_description)
+    return out
