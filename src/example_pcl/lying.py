@@ -79,12 +79,9 @@ def fit_lying_cylinder(points, r_eps, min_radius, max_radius, max_gap, direction
     scored by the points within r_eps of it), then refines the best three by Gauss-Newton on
     (theta, offset, zc, r) over the points within 2 r_eps, and keeps the one with most inliers.
     At most max_points points (evenly subsampled) are used; rms and n_inliers are theirs."""
-    if len(points) > max_points:
-        points = points[:: int(np.ceil(len(points) / max_points))]
+    points, origin, q = _centred(points, max_points)
     if len(points) < 3:
         return None
-    origin = points[:, :2].mean(axis=0)
-    q = points[:, :2] - origin
     z = points[:, 2]
     theta = np.arange(directions) * np.pi / directions
     lateral = -q[:, 0][None, :] * np.sin(theta)[:, None] + q[:, 1][None, :] * np.cos(theta)[:, None]
@@ -113,12 +110,9 @@ def refine_lying_cylinder(points, start, direction, radius, r_eps, max_radius, m
     but without its scan: points (float64 (N, 3), plane frame, m); start (3,): a point of the
     previous axis (its z the axis' height), direction (2,) or (3,): the axis seen from above (need not
     be unit), radius (m). The refined direction keeps the previous one's sense."""
-    if len(points) > max_points:
-        points = points[:: int(np.ceil(len(points) / max_points))]
+    points, origin, q = _centred(points, max_points)
     if len(points) < 4:
         return None
-    origin = points[:, :2].mean(axis=0)
-    q = points[:, :2] - origin
     theta = float(np.arctan2(direction[1], direction[0]))
     rel = np.asarray(start[:2], dtype=float) - origin
     offset = -rel[0] * np.sin(theta) + rel[1] * np.cos(theta)
@@ -127,6 +121,15 @@ def refine_lying_cylinder(points, start, direction, radius, r_eps, max_radius, m
     if best is None:
         return None
     return _without_ends(q, points[:, 2], origin, best, r_eps, iterations, max_radius, max_gap)
+
+
+def _centred(points, max_points):
+    """(points evenly subsampled to at most max_points, origin: their mean (x, y), q: their (x, y)
+    less the origin): the coordinates the fits work in."""
+    if len(points) > max_points:
+        points = points[:: int(np.ceil(len(points) / max_points))]
+    origin = points[:, :2].mean(axis=0) if len(points) else np.zeros(2)
+    return points, origin, points[:, :2] - origin
 
 
 def _without_ends(q, z, origin, best, r_eps, iterations, max_radius, max_gap):
