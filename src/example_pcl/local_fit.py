@@ -19,9 +19,9 @@ sensor frame, metres, NaN holes):
    previous cylinder, then lying.judge_lying's criterion and the same radius change.
 3. **Scene changed?** On a coarse grid (every ``change_step``-th pixel), the points standing on
    the table (as auto_finder counts support: above ``min_height`` plus 3.5 sigma of depth noise,
-   below ``max_height``) that are in no can's region (a lying can's: along its axis) and were not already there at the last
-   full search (that mask grown by ``change_dilation`` cells, for a slowly moving camera) are
-   counted; ``min_new_points`` or more means something new stands there.
+   below ``max_height``) that are in no can's region (a lying can's: along its axis) and were not
+   already there at the last full search (that mask grown by ``change_dilation`` cells, for a
+   slowly moving camera) are counted; ``min_new_points`` or more means something new stands there.
 
 :class:`LocalFinder` strings these together frame after frame and falls back on the full search
 (auto_finder.find_cans) on the first frame, every ``search_period`` frames, and whenever the

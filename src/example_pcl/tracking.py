@@ -2,9 +2,9 @@
 assignment), knows nothing of ROS.
 
 :class:`CanTracker` takes each frame's detections - any objects with ``base_center`` (float (3,),
-m), ``axis`` (unit (3,)), ``radius``, ``height`` (m), ``rms_error`` (m), ``arc_coverage`` (rad) and
-``n_fit_points`` (and ``lying``, false when absent), as example_pcl.can.Can has - all in one frame (the sensor's or a fixed
-target frame), with the frame's stamp (s), and keeps one :class:`Track` per can:
+m), ``axis`` (unit (3,)), ``radius``, ``height`` (m), ``rms_error`` (m), ``arc_coverage`` (rad),
+``n_fit_points`` and ``lying`` (false when absent), as example_pcl.can.Can has - all in one frame
+(the sensor's or a fixed target frame), with the frame's stamp (s), and keeps one :class:`Track` per can:
 
 * **Association.** Each track's centre is predicted to the new stamp; detections are
   assigned to tracks by minimum total distance (``scipy.optimize.linear_sum_assignment``) among
@@ -87,7 +87,8 @@ class TrackerConfig:
     def validate(self):
         """Raises PerceptionError naming the first value that makes no sense."""
         require_positive(self, ("max_missed", "gate_distance", "radius_gate", "position_noise", "accel_noise",
-                                "max_accel", "init_speed", "lag_sigmas", "axis_noise", "max_gap", "confirm_hits", "rms_limit"))
+                                "max_accel", "init_speed", "lag_sigmas", "axis_noise", "max_gap", "confirm_hits",
+                                "rms_limit"))
         for name in ("axis_gain", "size_gain", "lag_gain"):
             if not 0 < getattr(self, name) <= 1:
                 raise PerceptionError(f"TrackerConfig.{name} must be in (0, 1], got {getattr(self, name)}")
