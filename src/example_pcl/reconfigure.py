@@ -98,7 +98,8 @@ def tracker_from_values(local, tracker, values):
 
     The search's fields take the names of cfg/can_search_params.py (``auto_`` + the name where
     find_can's operator steps use it; its lying step's, lying_*, their own); the local refit's
-    take theirs, or ``local_`` + the name where the search uses it too (max_fit_points, fit_tolerance); the tracker's take theirs.
+    take theirs, or ``local_`` + the name where the search uses it too (max_fit_points,
+    fit_tolerance); the tracker's take theirs.
     Returns (LocalFitConfig, TrackerConfig, changes: "name old -> new" strings for the log).
     Raises PerceptionError (nothing changed) when a result would not validate.
     """
