@@ -192,25 +192,37 @@ def circle_hypotheses(xy, n, rng, min_radius, max_radius, partners=8):
     return cx[keep], cy[keep], r[keep]
 
 
-def best_circles(xy, cx, cy, r, eps, count, sensor=None, max_overlap=0.5):
-    """The `count` circles with most points of xy within eps, distinct: at most max_overlap of the
-    smaller one's points shared with one taken before (so circles through one box face count once,
-    while a can beside it, or a cup of another radius on it, is another): list of (cx, cy, r,
-    inliers). With the sensor's (x, y) given, only points on the half of a circle facing it count
-    (an upright can's side seen; a face seen across a circle's far half is no can)."""
-    if len(cx) == 0:
-        return []
+def circle_members(xy, cx, cy, r, eps, sensor=None):
+    """Which of the points xy (float64 (M, 2), m) lie within eps of each circle (cx, cy, r: (K,) each):
+    (members (K, M) bool, residual (K, M): distance from the centre minus the radius, m). With the
+    sensor's (x, y) given, only the points on the half of a circle facing it (and a quarter radius
+    beyond) are members."""
     dx, dy = xy[None, :, 0] - cx[:, None], xy[None, :, 1] - cy[:, None]
-    d2 = dx * dx + dy * dy
-    lo2 = np.maximum(r - eps, 0.0) ** 2
-    members = (d2 >= lo2[:, None]) & (d2 <= ((r + eps) ** 2)[:, None])
+    residual = np.sqrt(dx * dx + dy * dy) - r[:, None]
+    members = np.abs(residual) <= eps
     if sensor is not None:
         fx, fy = sensor[0] - cx, sensor[1] - cy
         norm = np.maximum(np.hypot(fx, fy), 1e-9)
         members &= (dx * (fx / norm)[:, None] + dy * (fy / norm)[:, None]) > -0.25 * r[:, None]
+    return members, residual
+
+
+def best_circles(xy, cx, cy, r, eps, count, sensor=None, max_overlap=0.5):
+    """The `count` best circles, distinct: at most max_overlap of the smaller one's points within eps
+    shared with one taken before (so circles through one box face count once, while a can beside it,
+    or a cup of another radius on it, is another): list of (cx, cy, r, inliers). Best: the largest
+    sum of 1 - (residual / eps)^2 over the points of xy within eps (MSAC's truncated quadratic),
+    i.e. many points, close. With the sensor's (x, y) given, only points on the half of a circle
+    facing it count (an upright can's side seen; a face seen across a circle's far half is no can)."""
+    if len(cx) == 0:
+        return []
+    members, residual = circle_members(xy, cx, cy, r, eps, sensor)
     score = members.sum(axis=1)
+    # Ranked by how close, not only how many: a wide circle tangent to a can's front, or through it
+    # and a box's edge, holds as many points in its band as the can's own circle, but loosely.
+    quality = np.where(members, 1.0 - (residual / eps) ** 2, 0.0).sum(axis=1)
     out, taken = [], []
-    for k in np.argsort(-score, kind="stable"):
+    for k in np.argsort(-quality, kind="stable"):
         if score[k] < 3:
             break
         if taken:
