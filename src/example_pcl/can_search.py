@@ -381,8 +381,11 @@ def verify(free, cx, cy, r, ctx):
         lo += 1
     z_lo, z_hi = lo * s.band_height, (hi + 1) * s.band_height
     # The top: the lid just above the run (99th percentile of the disc's points up to 2 bands above);
-    # the side ends top_margin (and 3 sigma) below it, so the lid's rim is no side point.
-    top = _percentile(z[(dist <= r + r_eps) & (z >= z_lo) & (z < z_hi + 2 * s.band_height)], 99)
+    # the side ends top_margin (and 3 sigma) below it, so the lid's rim is no side point. Taken on the
+    # disc's outer ring when it holds points: a narrower can standing on the lid rises inside it.
+    lid = (dist <= r + r_eps) & (z >= z_lo) & (z < z_hi + 2 * s.band_height)
+    ring = lid & (dist >= 0.7 * r)
+    top = _percentile(z[ring if np.count_nonzero(ring) >= s.min_band_points else lid], 99)
     z_end = min(z_hi, top - c.top_margin - 3 * sigma)
     side = on & (z >= z_lo) & (z < z_end)
     n_side = int(np.count_nonzero(side))
@@ -585,6 +588,12 @@ def _support(points, cx, cy, r, base, r_eps, sigma, ctx):
                     and abs(top - base_z) < 0.02):
                 below = "can"
         return below, True, base_z, ""
+    # A can found before, right under it (its lid's points left with it): it stands on that can.
+    for other in ctx.found:
+        top = other.support_height + other.height
+        if (not other.lying and np.hypot(cx - other.center_plane[0], cy - other.center_plane[1]) < other.radius
+                and base - 0.025 - 3 * sigma <= top <= base + 0.005):
+            return "can", True, top, ""
     # Something in front, as high as the lowest point seen: the base is hidden behind it.
     st = ctx.standing
     srel = st[:, :2] - (cx, cy)
