@@ -404,7 +404,7 @@ def verify(free, cx, cy, r, ctx):
         return None, "no circle fits the side (the points are collinear)", None
     if not c.min_radius - r_eps <= kr <= c.max_radius + r_eps:
         return None, (f"radius {1e3 * kr:.1f} mm outside [{1e3 * c.min_radius:.0f}, {1e3 * c.max_radius:.0f}] mm"
-                      ), claim(kx, ky, kr)
+                      ), _claim_round(pts[side], kx, ky, kr, claim, c)
     xy = pts[side, :2]
     if len(xy) > s.fit_points:
         xy = xy[:: int(np.ceil(len(xy) / s.fit_points))]
@@ -416,7 +416,7 @@ def verify(free, cx, cy, r, ctx):
     cx, cy, r, cutoff = _robust_refit(xy, cx, cy, r, r_eps, ctx)
     if not c.min_radius <= r <= c.max_radius:
         return None, (f"radius {1e3 * r:.1f} mm outside [{1e3 * c.min_radius:.0f}, {1e3 * c.max_radius:.0f}] mm"
-                      ), claim()
+                      ), _claim_round(xy, cx, cy, r, claim, c)
     # The fit moved the circle: the rest looks within reach of a handle or a support of the new one.
     near = free.near(cx, cy, r + r_eps + max(2 * s.handle_reach, s.support_reach))
     pts = free.points[near]
@@ -472,6 +472,16 @@ def verify(free, cx, cy, r, ctx):
               center_plane=np.array([cx, cy]), shape_error=shape, indices=mine, support=support,
               base_seen=base_seen, support_height=float(base_z))
     return can, None, None
+
+
+def _claim_round(xy, cx, cy, r, claim, config):
+    """claim(cx, cy, r) (the disc's points: verify's claim) when the side points xy (m, plane frame)
+    are round about the circle (shape error within max_shape_error: a tin, a pot), else None. A
+    circle of no can's radius through a box's corner, or through a box's face and a can beside it,
+    would take the can's points with its disc."""
+    if g.shape_error(xy, cx, cy, r, config.shape_bins) > config.max_shape_error:
+        return None
+    return claim(cx, cy, r)
 
 
 def radius_taper(dist, z):
@@ -671,6 +681,13 @@ def _handle(points, cx, cy, dist, r, r_eps, base, top, ctx):
     beyond = (dist > r + s.handle_reach) & (dist <= r + 2 * s.handle_reach)
     if (out & span & ((z <= base + 0.01) | (z >= top + 0.005))).any() or (beyond & span).sum() >= s.min_handle_points:
         return ""  # it reaches the support, the top or further out: another object touching it
+    # A box's face touching the can runs on beyond handle_reach, seen from above, at any angle to the
+    # radius (outside the arc when it is nearly tangent); a handle ends there.
+    outer = mid & (dist > r + s.handle_reach - 2 * r_eps)
+    if outer.any() and beyond.any():
+        gap = np.hypot(points[beyond, None, 0] - points[None, outer, 0], points[beyond, None, 1] - points[None, outer, 1])
+        if np.count_nonzero(gap.min(axis=1) <= 2 * r_eps) >= s.min_handle_points:
+            return ""
     return (f"handle: {int(mid.sum())} points stick out of the side over {arc:.2f} rad without reaching the "
             "support (a mug)")
 
