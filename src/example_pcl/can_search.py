@@ -66,7 +66,10 @@ class CylinderSearchConfig:
     triplets drawn per round; pool_points: at most this many points score them, drawn with weights
     that favour walls (points per wall_cell x wall_cell square seen from above); verify: the best
     so many distinct hypotheses are verified per round; fit_points: at most this many side points
-    (evenly subsampled) go into the Levenberg-Marquardt fit; max_rounds: per cluster.
+    (evenly subsampled) go into the Levenberg-Marquardt fit; max_rounds: per cluster. retries,
+    retry_verify: when no circle verified in a round makes progress, up to `retries` more draws from
+    the pool points the circles tried did not explain, verifying the best retry_verify of each (a
+    big box's faces crowd a small can's triplets out of the first draw).
     band_height, band_fraction, min_band_points, max_band_gap (bands): the growth along the axis.
     table_gap: a base this close above min_height stands on the table; support_reach: a
     supporting surface is looked for this far around the can; occluder_reach: an object hiding
@@ -100,6 +103,8 @@ class CylinderSearchConfig:
     verify: int = 3
     fit_points: int = 250
     max_rounds: int = 6
+    retries: int = 1
+    retry_verify: int = 1
     band_height: float = 0.01
     band_fraction: float = 0.2
     min_band_points: int = 3
@@ -332,10 +337,12 @@ def _facing(x, y, cx, cy, r, ctx):
     return (x - cx) * front[0] + (y - cy) * front[1] > -0.25 * r
 
 
-def verify(free, cx, cy, r, ctx):
+def verify(free, cx, cy, r, ctx, again=True):
     """One circle hypothesis against a cluster's free points (_Free, plane frame):
     (Can whose .indices index the cluster's points, None, None), or (None, reason, claim):
-    claim the indices of the points of a round object that is no can (a tin, cup, bowl), else None."""
+    claim the indices of the points of a round object that is no can (a tin, cup, bowl), else None.
+    again: when the fit lands more than 2 r_eps from the circle the bands were judged on, verify
+    once more from the fitted circle."""
     c, s = ctx.config, ctx.search
     sigma = _sigma(ctx, (cx, cy, free.median_z))
     r_eps = max(c.r_eps, c.r_eps_sigmas * sigma)
@@ -372,6 +379,7 @@ def verify(free, cx, cy, r, ctx):
     run = band_run(band_on, band_inside, s.band_fraction, s.min_band_points, s.max_band_gap)
     if run is None:
         return None, "no band of points on the circle", None
+    judged = (cx, cy, r)
     lo, hi = run
     # A surface the can stands on (a tin's lid, a box's top) adds a band crowded with points on
     # the circle and beyond it: the side starts above it.
@@ -417,6 +425,10 @@ def verify(free, cx, cy, r, ctx):
     if not c.min_radius <= r <= c.max_radius:
         return None, (f"radius {1e3 * r:.1f} mm outside [{1e3 * c.min_radius:.0f}, {1e3 * c.max_radius:.0f}] mm"
                       ), _claim_round(xy, cx, cy, r, claim, c)
+    # A wide circle through part of a can's side fits onto the can, but its run of bands was grown on
+    # the wide circle's points (a part of the can's height): the bands are judged again on the fit.
+    if again and (np.hypot(cx - judged[0], cy - judged[1]) > 2 * r_eps or abs(r - judged[2]) > 2 * r_eps):
+        return verify(free, cx, cy, r, ctx, again=False)
     # The fit moved the circle: the rest looks within reach of a handle or a support of the new one.
     near = free.near(cx, cy, r + r_eps + max(2 * s.handle_reach, s.support_reach))
     pts = free.points[near]
@@ -685,7 +697,8 @@ def _handle(points, cx, cy, dist, r, r_eps, base, top, ctx):
     # radius (outside the arc when it is nearly tangent); a handle ends there.
     outer = mid & (dist > r + s.handle_reach - 2 * r_eps)
     if outer.any() and beyond.any():
-        gap = np.hypot(points[beyond, None, 0] - points[None, outer, 0], points[beyond, None, 1] - points[None, outer, 1])
+        bx, by, ox, oy = points[beyond, 0], points[beyond, 1], points[outer, 0], points[outer, 1]
+        gap = np.hypot(bx[:, None] - ox[None, :], by[:, None] - oy[None, :])
         if np.count_nonzero(gap.min(axis=1) <= 2 * r_eps) >= s.min_handle_points:
             return ""
     return (f"handle: {int(mid.sum())} points stick out of the side over {arc:.2f} rad without reaching the "
@@ -723,34 +736,43 @@ def search_cluster(points, ctx):
         xy = this_round.points[pool, :2]
         sigma = _sigma(ctx, this_round.points[pool].mean(axis=0))
         r_eps = max(c.r_eps, c.r_eps_sigmas * sigma)
-        cx, cy, r = circle_hypotheses(xy, s.hypotheses, ctx.rng, c.min_radius, c.max_radius + r_eps)
-        candidates = best_circles(xy, cx, cy, r, r_eps, s.verify, sensor=ctx.sensor)
-        if not candidates:
-            last = last or ("no circle of a can's radius through its points", None)
-            break
-        # A circle through a lid or a box's top has its points at one height: no side, not verified.
         z_pool = this_round.z[pool]
-        candidates = [h for h in candidates
-                      if np.ptp(z_pool[np.abs(np.hypot(xy[:, 0] - h[0], xy[:, 1] - h[1]) - h[2]) <= r_eps])
-                      >= 0.5 * c.min_can_height]
-        progress = False
-        for cx0, cy0, r0, _ in candidates:
-            can, reason, claim = verify(this_round, cx0, cy0, r0, ctx)
-            if can is not None:
-                cans.append(can)
-                ctx.found.append(can)
-                free[can.indices] = False
-                progress = True
+        progress, tried = False, np.zeros(len(pool), bool)
+        for attempt in range(1 + s.retries):
+            # A retry draws its circles from the pool points the circles tried did not explain (a big
+            # box's faces crowd out the triplets of a small can beside it).
+            axy, az = xy[~tried], z_pool[~tried]
+            cx, cy, r = circle_hypotheses(axy, s.hypotheses, ctx.rng, c.min_radius, c.max_radius + r_eps)
+            candidates = best_circles(axy, cx, cy, r, r_eps, s.verify if attempt == 0 else s.retry_verify,
+                                      sensor=ctx.sensor)
+            if not candidates:
+                if attempt == 0:
+                    last = last or ("no circle of a can's radius through its points", None)
                 break
-            if claim is not None and len(claim):
-                # A round object that is no can (a tin, a cup): named, and not tried again.
-                rejections.append(Rejection(centroid=points[claim].mean(axis=0), n_points=len(claim), reason=reason,
-                                            radius=r0))
-                free[claim] = False
-                progress = True
+            # A circle through a lid or a box's top has its points at one height: no side, not verified.
+            candidates = [h for h in candidates
+                          if np.ptp(az[np.abs(np.hypot(axy[:, 0] - h[0], axy[:, 1] - h[1]) - h[2]) <= r_eps])
+                          >= 0.5 * c.min_can_height]
+            for cx0, cy0, r0, _ in candidates:
+                can, reason, claim = verify(this_round, cx0, cy0, r0, ctx)
+                if can is not None:
+                    cans.append(can)
+                    ctx.found.append(can)
+                    free[can.indices] = False
+                    progress = True
+                    break
+                if claim is not None and len(claim):
+                    # A round object that is no can (a tin, a cup): named, and not tried again.
+                    rejections.append(Rejection(centroid=points[claim].mean(axis=0), n_points=len(claim),
+                                                reason=reason, radius=r0))
+                    free[claim] = False
+                    progress = True
+                    break
+                if last is None:
+                    last = (reason, r0)
+                tried |= np.abs(np.hypot(xy[:, 0] - cx0, xy[:, 1] - cy0) - r0) <= r_eps
+            if progress or np.count_nonzero(~tried) < 3:
                 break
-            if last is None:
-                last = (reason, r0)
         if not progress:
             break
     rest = np.flatnonzero(free)
