@@ -66,7 +66,10 @@ class CylinderSearchConfig:
     triplets drawn per round; pool_points: at most this many points score them, drawn with weights
     that favour walls (points per wall_cell x wall_cell square seen from above); verify: the best
     so many distinct hypotheses are verified per round; fit_points: at most this many side points
-    (evenly subsampled) go into the Levenberg-Marquardt fit; max_rounds: per cluster.
+    (evenly subsampled) go into the Levenberg-Marquardt fit; max_rounds: per cluster. retries,
+    retry_verify: when no circle verified in a round makes progress, up to `retries` more draws from
+    the pool points the circles tried did not explain, verifying the best retry_verify of each (a
+    big box's faces crowd a small can's triplets out of the first draw).
     band_height, band_fraction, min_band_points, max_band_gap (bands): the growth along the axis.
     table_gap: a base this close above min_height stands on the table; support_reach: a
     supporting surface is looked for this far around the can; occluder_reach: an object hiding
@@ -100,6 +103,8 @@ class CylinderSearchConfig:
     verify: int = 3
     fit_points: int = 250
     max_rounds: int = 6
+    retries: int = 1
+    retry_verify: int = 1
     band_height: float = 0.01
     band_fraction: float = 0.2
     min_band_points: int = 3
@@ -192,25 +197,37 @@ def circle_hypotheses(xy, n, rng, min_radius, max_radius, partners=8):
     return cx[keep], cy[keep], r[keep]
 
 
-def best_circles(xy, cx, cy, r, eps, count, sensor=None, max_overlap=0.5):
-    """The `count` circles with most points of xy within eps, distinct: at most max_overlap of the
-    smaller one's points shared with one taken before (so circles through one box face count once,
-    while a can beside it, or a cup of another radius on it, is another): list of (cx, cy, r,
-    inliers). With the sensor's (x, y) given, only points on the half of a circle facing it count
-    (an upright can's side seen; a face seen across a circle's far half is no can)."""
-    if len(cx) == 0:
-        return []
+def circle_members(xy, cx, cy, r, eps, sensor=None):
+    """Which of the points xy (float64 (M, 2), m) lie within eps of each circle (cx, cy, r: (K,) each):
+    (members (K, M) bool, residual (K, M): distance from the centre minus the radius, m). With the
+    sensor's (x, y) given, only the points on the half of a circle facing it (and a quarter radius
+    beyond) are members."""
     dx, dy = xy[None, :, 0] - cx[:, None], xy[None, :, 1] - cy[:, None]
-    d2 = dx * dx + dy * dy
-    lo2 = np.maximum(r - eps, 0.0) ** 2
-    members = (d2 >= lo2[:, None]) & (d2 <= ((r + eps) ** 2)[:, None])
+    residual = np.sqrt(dx * dx + dy * dy) - r[:, None]
+    members = np.abs(residual) <= eps
     if sensor is not None:
         fx, fy = sensor[0] - cx, sensor[1] - cy
         norm = np.maximum(np.hypot(fx, fy), 1e-9)
         members &= (dx * (fx / norm)[:, None] + dy * (fy / norm)[:, None]) > -0.25 * r[:, None]
+    return members, residual
+
+
+def best_circles(xy, cx, cy, r, eps, count, sensor=None, max_overlap=0.5):
+    """The `count` best circles, distinct: at most max_overlap of the smaller one's points within eps
+    shared with one taken before (so circles through one box face count once, while a can beside it,
+    or a cup of another radius on it, is another): list of (cx, cy, r, inliers). Best: the largest
+    sum of 1 - (residual / eps)^2 over the points of xy within eps (MSAC's truncated quadratic),
+    i.e. many points, close. With the sensor's (x, y) given, only points on the half of a circle
+    facing it count (an upright can's side seen; a face seen across a circle's far half is no can)."""
+    if len(cx) == 0:
+        return []
+    members, residual = circle_members(xy, cx, cy, r, eps, sensor)
     score = members.sum(axis=1)
+    # Ranked by how close, not only how many: a wide circle tangent to a can's front, or through it
+    # and a box's edge, holds as many points in its band as the can's own circle, but loosely.
+    quality = np.where(members, 1.0 - (residual / eps) ** 2, 0.0).sum(axis=1)
     out, taken = [], []
-    for k in np.argsort(-score, kind="stable"):
+    for k in np.argsort(-quality, kind="stable"):
         if score[k] < 3:
             break
         if taken:
@@ -320,10 +337,12 @@ def _facing(x, y, cx, cy, r, ctx):
     return (x - cx) * front[0] + (y - cy) * front[1] > -0.25 * r
 
 
-def verify(free, cx, cy, r, ctx):
+def verify(free, cx, cy, r, ctx, again=True):
     """One circle hypothesis against a cluster's free points (_Free, plane frame):
     (Can whose .indices index the cluster's points, None, None), or (None, reason, claim):
-    claim the indices of the points of a round object that is no can (a tin, cup, bowl), else None."""
+    claim the indices of the points of a round object that is no can (a tin, cup, bowl), else None.
+    again: when the fit lands more than 2 r_eps from the circle the bands were judged on, verify
+    once more from the fitted circle."""
     c, s = ctx.config, ctx.search
     sigma = _sigma(ctx, (cx, cy, free.median_z))
     r_eps = max(c.r_eps, c.r_eps_sigmas * sigma)
@@ -360,6 +379,7 @@ def verify(free, cx, cy, r, ctx):
     run = band_run(band_on, band_inside, s.band_fraction, s.min_band_points, s.max_band_gap)
     if run is None:
         return None, "no band of points on the circle", None
+    judged = (cx, cy, r)
     lo, hi = run
     # A surface the can stands on (a tin's lid, a box's top) adds a band crowded with points on
     # the circle and beyond it: the side starts above it.
@@ -369,8 +389,11 @@ def verify(free, cx, cy, r, ctx):
         lo += 1
     z_lo, z_hi = lo * s.band_height, (hi + 1) * s.band_height
     # The top: the lid just above the run (99th percentile of the disc's points up to 2 bands above);
-    # the side ends top_margin (and 3 sigma) below it, so the lid's rim is no side point.
-    top = _percentile(z[(dist <= r + r_eps) & (z >= z_lo) & (z < z_hi + 2 * s.band_height)], 99)
+    # the side ends top_margin (and 3 sigma) below it, so the lid's rim is no side point. Taken on the
+    # disc's outer ring when it holds points: a narrower can standing on the lid rises inside it.
+    lid = (dist <= r + r_eps) & (z >= z_lo) & (z < z_hi + 2 * s.band_height)
+    ring = lid & (dist >= 0.7 * r)
+    top = _percentile(z[ring if np.count_nonzero(ring) >= s.min_band_points else lid], 99)
     z_end = min(z_hi, top - c.top_margin - 3 * sigma)
     side = on & (z >= z_lo) & (z < z_end)
     n_side = int(np.count_nonzero(side))
@@ -389,7 +412,7 @@ def verify(free, cx, cy, r, ctx):
         return None, "no circle fits the side (the points are collinear)", None
     if not c.min_radius - r_eps <= kr <= c.max_radius + r_eps:
         return None, (f"radius {1e3 * kr:.1f} mm outside [{1e3 * c.min_radius:.0f}, {1e3 * c.max_radius:.0f}] mm"
-                      ), claim(kx, ky, kr)
+                      ), _claim_round(pts[side], kx, ky, kr, claim, c)
     xy = pts[side, :2]
     if len(xy) > s.fit_points:
         xy = xy[:: int(np.ceil(len(xy) / s.fit_points))]
@@ -401,7 +424,11 @@ def verify(free, cx, cy, r, ctx):
     cx, cy, r, cutoff = _robust_refit(xy, cx, cy, r, r_eps, ctx)
     if not c.min_radius <= r <= c.max_radius:
         return None, (f"radius {1e3 * r:.1f} mm outside [{1e3 * c.min_radius:.0f}, {1e3 * c.max_radius:.0f}] mm"
-                      ), claim()
+                      ), _claim_round(xy, cx, cy, r, claim, c)
+    # A wide circle through part of a can's side fits onto the can, but its run of bands was grown on
+    # the wide circle's points (a part of the can's height): the bands are judged again on the fit.
+    if again and (np.hypot(cx - judged[0], cy - judged[1]) > 2 * r_eps or abs(r - judged[2]) > 2 * r_eps):
+        return verify(free, cx, cy, r, ctx, again=False)
     # The fit moved the circle: the rest looks within reach of a handle or a support of the new one.
     near = free.near(cx, cy, r + r_eps + max(2 * s.handle_reach, s.support_reach))
     pts = free.points[near]
@@ -457,6 +484,16 @@ def verify(free, cx, cy, r, ctx):
               center_plane=np.array([cx, cy]), shape_error=shape, indices=mine, support=support,
               base_seen=base_seen, support_height=float(base_z))
     return can, None, None
+
+
+def _claim_round(xy, cx, cy, r, claim, config):
+    """claim(cx, cy, r) (the disc's points: verify's claim) when the side points xy (m, plane frame)
+    are round about the circle (shape error within max_shape_error: a tin, a pot), else None. A
+    circle of no can's radius through a box's corner, or through a box's face and a can beside it,
+    would take the can's points with its disc."""
+    if g.shape_error(xy, cx, cy, r, config.shape_bins) > config.max_shape_error:
+        return None
+    return claim(cx, cy, r)
 
 
 def radius_taper(dist, z):
@@ -573,6 +610,12 @@ def _support(points, cx, cy, r, base, r_eps, sigma, ctx):
                     and abs(top - base_z) < 0.02):
                 below = "can"
         return below, True, base_z, ""
+    # A can found before, right under it (its lid's points left with it): it stands on that can.
+    for other in ctx.found:
+        top = other.support_height + other.height
+        if (not other.lying and np.hypot(cx - other.center_plane[0], cy - other.center_plane[1]) < other.radius
+                and base - 0.025 - 3 * sigma <= top <= base + 0.005):
+            return "can", True, top, ""
     # Something in front, as high as the lowest point seen: the base is hidden behind it.
     st = ctx.standing
     srel = st[:, :2] - (cx, cy)
@@ -650,6 +693,14 @@ def _handle(points, cx, cy, dist, r, r_eps, base, top, ctx):
     beyond = (dist > r + s.handle_reach) & (dist <= r + 2 * s.handle_reach)
     if (out & span & ((z <= base + 0.01) | (z >= top + 0.005))).any() or (beyond & span).sum() >= s.min_handle_points:
         return ""  # it reaches the support, the top or further out: another object touching it
+    # A box's face touching the can runs on beyond handle_reach, seen from above, at any angle to the
+    # radius (outside the arc when it is nearly tangent); a handle ends there.
+    outer = mid & (dist > r + s.handle_reach - 2 * r_eps)
+    if outer.any() and beyond.any():
+        bx, by, ox, oy = points[beyond, 0], points[beyond, 1], points[outer, 0], points[outer, 1]
+        gap = np.hypot(bx[:, None] - ox[None, :], by[:, None] - oy[None, :])
+        if np.count_nonzero(gap.min(axis=1) <= 2 * r_eps) >= s.min_handle_points:
+            return ""
     return (f"handle: {int(mid.sum())} points stick out of the side over {arc:.2f} rad without reaching the "
             "support (a mug)")
 
@@ -685,34 +736,43 @@ def search_cluster(points, ctx):
         xy = this_round.points[pool, :2]
         sigma = _sigma(ctx, this_round.points[pool].mean(axis=0))
         r_eps = max(c.r_eps, c.r_eps_sigmas * sigma)
-        cx, cy, r = circle_hypotheses(xy, s.hypotheses, ctx.rng, c.min_radius, c.max_radius + r_eps)
-        candidates = best_circles(xy, cx, cy, r, r_eps, s.verify, sensor=ctx.sensor)
-        if not candidates:
-            last = last or ("no circle of a can's radius through its points", None)
-            break
-        # A circle through a lid or a box's top has its points at one height: no side, not verified.
         z_pool = this_round.z[pool]
-        candidates = [h for h in candidates
-                      if np.ptp(z_pool[np.abs(np.hypot(xy[:, 0] - h[0], xy[:, 1] - h[1]) - h[2]) <= r_eps])
-                      >= 0.5 * c.min_can_height]
-        progress = False
-        for cx0, cy0, r0, _ in candidates:
-            can, reason, claim = verify(this_round, cx0, cy0, r0, ctx)
-            if can is not None:
-                cans.append(can)
-                ctx.found.append(can)
-                free[can.indices] = False
-                progress = True
+        progress, tried = False, np.zeros(len(pool), bool)
+        for attempt in range(1 + s.retries):
+            # A retry draws its circles from the pool points the circles tried did not explain (a big
+            # box's faces crowd out the triplets of a small can beside it).
+            axy, az = xy[~tried], z_pool[~tried]
+            cx, cy, r = circle_hypotheses(axy, s.hypotheses, ctx.rng, c.min_radius, c.max_radius + r_eps)
+            candidates = best_circles(axy, cx, cy, r, r_eps, s.verify if attempt == 0 else s.retry_verify,
+                                      sensor=ctx.sensor)
+            if not candidates:
+                if attempt == 0:
+                    last = last or ("no circle of a can's radius through its points", None)
                 break
-            if claim is not None and len(claim):
-                # A round object that is no can (a tin, a cup): named, and not tried again.
-                rejections.append(Rejection(centroid=points[claim].mean(axis=0), n_points=len(claim), reason=reason,
-                                            radius=r0))
-                free[claim] = False
-                progress = True
+            # A circle through a lid or a box's top has its points at one height: no side, not verified.
+            candidates = [h for h in candidates
+                          if np.ptp(az[np.abs(np.hypot(axy[:, 0] - h[0], axy[:, 1] - h[1]) - h[2]) <= r_eps])
+                          >= 0.5 * c.min_can_height]
+            for cx0, cy0, r0, _ in candidates:
+                can, reason, claim = verify(this_round, cx0, cy0, r0, ctx)
+                if can is not None:
+                    cans.append(can)
+                    ctx.found.append(can)
+                    free[can.indices] = False
+                    progress = True
+                    break
+                if claim is not None and len(claim):
+                    # A round object that is no can (a tin, a cup): named, and not tried again.
+                    rejections.append(Rejection(centroid=points[claim].mean(axis=0), n_points=len(claim),
+                                                reason=reason, radius=r0))
+                    free[claim] = False
+                    progress = True
+                    break
+                if last is None:
+                    last = (reason, r0)
+                tried |= np.abs(np.hypot(xy[:, 0] - cx0, xy[:, 1] - cy0) - r0) <= r_eps
+            if progress or np.count_nonzero(~tried) < 3:
                 break
-            if last is None:
-                last = (reason, r0)
         if not progress:
             break
     rest = np.flatnonzero(free)
