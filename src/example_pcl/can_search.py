@@ -63,10 +63,12 @@ class CylinderSearchConfig:
     """Parameters of the search inside clusters (module docstring). Lengths in metres.
 
     grid_step (px): the search sees every grid_step-th pixel in each direction; hypotheses:
-    triplets drawn per round; pool_points: at most this many points score them, drawn with weights
-    that favour walls (points per wall_cell x wall_cell square seen from above); verify: the best
-    so many distinct hypotheses are verified per round; fit_points: at most this many side points
-    (evenly subsampled) go into the Levenberg-Marquardt fit; max_rounds: per cluster. retries,
+    triplets drawn per round, each from one horizontal slice hypothesis_slice (m) high (one object);
+    pool_points: at most this many points score them, drawn with weights that favour walls (points
+    per wall_cell x wall_cell square seen from above); verify: the best so many distinct hypotheses
+    are verified per round, each first refined by refine_rounds linear fits in its slice;
+    fit_points: at most this many side points (evenly subsampled) go into the Levenberg-Marquardt
+    fit; max_rounds: per cluster. retries,
     retry_verify: when no circle verified in a round makes progress, up to `retries` more draws from
     the pool points the circles tried did not explain, verifying the best retry_verify of each (a
     big box's faces crowd a small can's triplets out of the first draw).
@@ -98,6 +100,8 @@ class CylinderSearchConfig:
 
     grid_step: int = 2
     hypotheses: int = 48
+    hypothesis_slice: float = 0.05
+    refine_rounds: int = 3
     pool_points: int = 200
     wall_cell: float = 0.005
     verify: int = 3
@@ -166,23 +170,30 @@ def circumcircles(a, b, c):
     return ux + a[:, 0], uy + a[:, 1], r
 
 
-def circle_hypotheses(xy, n, rng, min_radius, max_radius, partners=8):
-    """Up to n circles (cx, cy, r) through triplets of the points xy (float64 (M, 2), m): each an
-    anchor and two points near it, radius within range.
+def circle_hypotheses(xy, z, n, rng, min_radius, max_radius, slice_height, partners=16):
+    """Up to n circles (cx, cy, r, z0) through triplets of the points xy (float64 (M, 2), m) at heights
+    z (m): each an anchor and two points near it in the same horizontal slice of slice_height (m)
+    (z0: the middle of that slice), radius within range.
 
     Near: within the diameter of a can of a radius drawn per anchor (log-uniform in [min_radius,
     max_radius]), so a small can beside a box gets triplets of its own points as often as a large
-    one. The two are the first near ones of `partners` points drawn within that reach of the anchor
-    in x (the points sorted by x): no (n, M) distance matrix."""
+    one. One slice keeps the three on one object (a cup on a can, a few millimetres wider, gives no
+    circle in between). The two are the first near ones of `partners` points drawn within that
+    reach of the anchor in x among its slice's (the points sorted by slice, then x): no (n, M)
+    distance matrix."""
     m = len(xy)
     if m < 3:
-        return np.empty(0), np.empty(0), np.empty(0)
-    order = np.argsort(xy[:, 0], kind="stable")
-    sx = xy[order, 0]
+        return np.empty(0), np.empty(0), np.empty(0), np.empty(0)
+    level = np.floor(z / slice_height)
+    # One sort key: slices far enough apart in it that no reach in x crosses from one to the next.
+    x = xy[:, 0] - xy[:, 0].min()
+    key = level * (x.max() + 4 * max_radius + 1.0) + x
+    order = np.argsort(key, kind="stable")
+    sk = key[order]
     anchors = rng.integers(m, size=n)
     reach = 2 * np.exp(rng.uniform(np.log(min_radius), np.log(max_radius), size=n))
-    lo = np.searchsorted(sx, xy[anchors, 0] - reach)
-    hi = np.searchsorted(sx, xy[anchors, 0] + reach, side="right")
+    lo = np.searchsorted(sk, key[anchors] - reach)
+    hi = np.searchsorted(sk, key[anchors] + reach, side="right")
     drawn = order[lo[:, None] + (rng.random((n, partners)) * (hi - lo)[:, None]).astype(np.int64)]
     d2 = ((xy[drawn] - xy[anchors, None, :]) ** 2).sum(axis=2)  # (n, partners)
     near = (d2 <= (reach ** 2)[:, None]) & (d2 >= (0.25 * min_radius) ** 2)
@@ -190,11 +201,11 @@ def circle_hypotheses(xy, n, rng, min_radius, max_radius, partners=8):
     rows = np.arange(n)[:, None]
     ok = near[rows, first].all(axis=1)
     if not ok.any():
-        return np.empty(0), np.empty(0), np.empty(0)
+        return np.empty(0), np.empty(0), np.empty(0), np.empty(0)
     two = drawn[rows, first][ok]
     cx, cy, r = circumcircles(xy[anchors[ok]], xy[two[:, 0]], xy[two[:, 1]])
     keep = (r >= min_radius) & (r <= max_radius)
-    return cx[keep], cy[keep], r[keep]
+    return cx[keep], cy[keep], r[keep], ((level[anchors[ok]] + 0.5) * slice_height)[keep]
 
 
 def circle_members(xy, cx, cy, r, eps, sensor=None):
@@ -215,7 +226,7 @@ def circle_members(xy, cx, cy, r, eps, sensor=None):
 def best_circles(xy, cx, cy, r, eps, count, sensor=None, max_overlap=0.5):
     """The `count` best circles, distinct: at most max_overlap of the smaller one's points within eps
     shared with one taken before (so circles through one box face count once, while a can beside it,
-    or a cup of another radius on it, is another): list of (cx, cy, r, inliers). Best: the largest
+    or a cup of another radius on it, is another): their positions in cx, cy, r. Best: the largest
     sum of 1 - (residual / eps)^2 over the points of xy within eps (MSAC's truncated quadratic),
     i.e. many points, close. With the sensor's (x, y) given, only points on the half of a circle
     facing it count (an upright can's side seen; a face seen across a circle's far half is no can)."""
@@ -226,7 +237,7 @@ def best_circles(xy, cx, cy, r, eps, count, sensor=None, max_overlap=0.5):
     # Ranked by how close, not only how many: a wide circle tangent to a can's front, or through it
     # and a box's edge, holds as many points in its band as the can's own circle, but loosely.
     quality = np.where(members, 1.0 - (residual / eps) ** 2, 0.0).sum(axis=1)
-    out, taken = [], []
+    taken = []
     for k in np.argsort(-quality, kind="stable"):
         if score[k] < 3:
             break
@@ -234,11 +245,10 @@ def best_circles(xy, cx, cy, r, eps, count, sensor=None, max_overlap=0.5):
             shared = (members[taken] & members[k]).sum(axis=1)
             if (shared > max_overlap * np.minimum(score[taken], score[k])).any():
                 continue
-        taken.append(k)
-        out.append((float(cx[k]), float(cy[k]), float(r[k]), int(score[k])))
-        if len(out) == count:
+        taken.append(int(k))
+        if len(taken) == count:
             break
-    return out
+    return taken
 
 
 # --- along the axis -------------------------------------------------------------------------------
@@ -337,12 +347,13 @@ def _facing(x, y, cx, cy, r, ctx):
     return (x - cx) * front[0] + (y - cy) * front[1] > -0.25 * r
 
 
-def verify(free, cx, cy, r, ctx, again=True):
+def verify(free, cx, cy, r, ctx, z0=None, again=True):
     """One circle hypothesis against a cluster's free points (_Free, plane frame):
     (Can whose .indices index the cluster's points, None, None), or (None, reason, claim):
     claim the indices of the points of a round object that is no can (a tin, cup, bowl), else None.
-    again: when the fit lands more than 2 r_eps from the circle the bands were judged on, verify
-    once more from the fitted circle."""
+    z0: the height (m) of the points the circle came from (None: any). again: when the fit lands
+    more than 2 r_eps from the circle the bands were judged on, verify once more from the fitted
+    circle."""
     c, s = ctx.config, ctx.search
     sigma = _sigma(ctx, (cx, cy, free.median_z))
     r_eps = max(c.r_eps, c.r_eps_sigmas * sigma)
@@ -351,15 +362,26 @@ def verify(free, cx, cy, r, ctx, again=True):
     near = free.near(cx, cy, r + 4 * r_eps + s.support_reach)
     pts, bands = free.points[near], free.bands[near]
     x, y, z = pts[:, 0], pts[:, 1], pts[:, 2]
-    # The triplet's circle is only as good as three noisy points: one linear (Kasa) fit to the
-    # points near it, on its near half, before the bands judge it.
+    # The triplet's circle is only as good as three noisy points: linear (Kasa) fits to the points
+    # near it, on its near half and near its height (a cup on the can, a few millimetres wider,
+    # would pull it between the two), before the bands judge it. A few rounds: a circle through
+    # the ends of a short arc first takes part of it only.
     dist = np.hypot(x - cx, y - cy)
-    close = (np.abs(dist - r) <= r_eps) & _facing(x, y, cx, cy, r, ctx)
-    if np.count_nonzero(close) >= c.min_fit_points:
+    x0, y0, r0 = cx, cy, r
+    level = np.abs(z - z0) <= 0.5 * s.hypothesis_slice if z0 is not None else np.ones(len(z), bool)
+    # Not the top band: a lid's points near its rim lie within r_eps inside the circle.
+    inner = dist <= r + r_eps
+    if np.count_nonzero(inner) >= c.min_fit_points:
+        level &= z < _percentile(z[inner], 99) - s.band_height
+    for _ in range(s.refine_rounds):
+        close = (np.abs(dist - r) <= r_eps) & _facing(x, y, cx, cy, r, ctx) & level
+        if np.count_nonzero(close) < c.min_fit_points:
+            break
         kx, ky, kr = (float(v[0]) for v in g.fit_circles_algebraic(pts[close]))
-        if abs(kr - r) < 2 * r_eps and np.hypot(kx - cx, ky - cy) < 2 * r_eps:
-            cx, cy, r = kx, ky, kr
-            dist = np.hypot(x - cx, y - cy)
+        if not (abs(kr - r0) < 2 * r_eps and np.hypot(kx - x0, ky - y0) < 2 * r_eps):
+            break
+        cx, cy, r = kx, ky, kr
+        dist = np.hypot(x - cx, y - cy)
     # An upright can shows the sensor its near half only: points on the circle's far half are the
     # inside of something hollow (a cup's far wall), never a can's side.
     facing = _facing(x, y, cx, cy, r, ctx)
@@ -400,11 +422,12 @@ def verify(free, cx, cy, r, ctx, again=True):
     if n_side < c.min_fit_points:
         return None, f"{n_side} points on the circle (min {c.min_fit_points})", None
 
-    def claim(x0=None, y0=None, radius=None):
-        """The points of a round object that is no can: its disc over the run (so no other
-        hypothesis is tried on it)."""
+    def claim(x0=None, y0=None, radius=None, z_from=None):
+        """The points of a round object that is no can: its disc over the run, from z_from (m) when
+        its base is known (a cup on a can leaves the can's lid), so no other hypothesis is tried on it."""
         x0, y0, radius = (cx, cy, r) if x0 is None else (x0, y0, radius)
-        return free.disc(x0, y0, radius + r_eps, z_lo - s.band_height, z_hi + s.band_height)
+        return free.disc(x0, y0, radius + r_eps, z_lo - s.band_height if z_from is None else z_from,
+                         z_hi + s.band_height)
 
     # A linear (Kasa) circle first: cheap, and it already says when the radius is no can's.
     kx, ky, kr = (float(v[0]) for v in g.fit_circles_algebraic(pts[side]))
@@ -448,14 +471,19 @@ def verify(free, cx, cy, r, ctx, again=True):
     base = _percentile(z[side], 1)
     # Inlier fraction of the side below the lid: points inside the disc there are no can's.
     fraction = n_side / max(int(np.count_nonzero((dist <= r + r_eps) & in_run)), 1)
-    if fraction < c.min_inlier_fraction:
-        return None, (f"only {100 * fraction:.0f}% of the side within {1e3 * r_eps:.1f} mm of the circle "
-                      f"(min {100 * c.min_inlier_fraction:.0f}%)"), None
     if rms > max_rms:
         return None, f"rms residual {1e3 * rms:.2f} mm > {1e3 * max_rms:.2f} mm", None
     shape = g.shape_error(sxy, cx, cy, r, c.shape_bins)
     if shape > c.max_shape_error:
         return None, f"shape error {1e3 * shape:.2f} mm > {1e3 * c.max_shape_error:.2f} mm (not round)", None
+    if fraction < c.min_inlier_fraction:
+        # A round side with its inside seen (a cup's far wall) is a hollow object: named and claimed,
+        # so the can it may stand on is looked for next.
+        why = _open_top(pts[dist <= r + r_eps], cx, cy, r, r_eps, base, top, ctx)
+        if why:
+            return None, why, claim(z_from=base)
+        return None, (f"only {100 * fraction:.0f}% of the side within {1e3 * r_eps:.1f} mm of the circle "
+                      f"(min {100 * c.min_inlier_fraction:.0f}%)"), None
     arc = g.arc_coverage(sxy, cx, cy)
     if arc < c.min_arc and not (arc >= s.min_hidden_arc and _in_front(cx, cy, r, base, top, ctx)):
         return None, f"side seen over {arc:.2f} rad < {c.min_arc:.2f} rad", None
@@ -463,21 +491,21 @@ def verify(free, cx, cy, r, ctx, again=True):
     support, base_seen, base_z, why = _support(pts, cx, cy, r, base, r_eps, sigma, ctx)
     if support is None:
         return None, why, None
+    # On an object, the points within 3 sigma of its surface are the support's.
+    lowest = base_z - 0.5 * s.band_height if support == "table" else base_z + 3 * sigma
     # The side's own points within 2 r_eps (not the robust fit's outliers), to see its radius change.
     wall = (np.abs(dist - r) <= min(2 * r_eps, cutoff)) & facing_run
     why = _tapered(dist[wall], z[wall], sigma, ctx)
     if why:
-        return None, why, claim()
+        return None, why, claim(z_from=lowest)
     height = top - base_z
     if height < c.min_can_height or top - base < min(c.min_can_height, 0.6 * height):
         return None, (f"one circle explains only {100 * (top - base):.1f} cm of it (min "
-                      f"{100 * c.min_can_height:.1f} cm; a bowl's radius changes with height)"), claim()
+                      f"{100 * c.min_can_height:.1f} cm; a bowl's radius changes with height)"), claim(z_from=lowest)
     why = (_open_top(pts[dist <= r + r_eps], cx, cy, r, r_eps, base, top, ctx)
            or _handle(pts, cx, cy, dist, r, r_eps, base_z, top, ctx))
     if why:
-        return None, why, claim()
-    # On an object, the points within 3 sigma of its surface are the support's.
-    lowest = base_z - 0.5 * s.band_height if support == "table" else base_z + 3 * sigma
+        return None, why, claim(z_from=lowest)
     mine = free.idx[near[(dist <= r + r_eps) & (z >= lowest) & (z <= top + s.band_height)]]
     can = Can(T_sensor_from_can=g.can_pose(ctx.T_sensor_from_plane, cx, cy, base_z), radius=r,
               height=height, rms_error=rms, arc_coverage=arc, n_points=len(mine), n_fit_points=n_side,
@@ -742,19 +770,20 @@ def search_cluster(points, ctx):
             # A retry draws its circles from the pool points the circles tried did not explain (a big
             # box's faces crowd out the triplets of a small can beside it).
             axy, az = xy[~tried], z_pool[~tried]
-            cx, cy, r = circle_hypotheses(axy, s.hypotheses, ctx.rng, c.min_radius, c.max_radius + r_eps)
-            candidates = best_circles(axy, cx, cy, r, r_eps, s.verify if attempt == 0 else s.retry_verify,
-                                      sensor=ctx.sensor)
-            if not candidates:
+            cx, cy, r, z0 = circle_hypotheses(axy, az, s.hypotheses, ctx.rng, c.min_radius, c.max_radius + r_eps,
+                                              s.hypothesis_slice)
+            best = best_circles(axy, cx, cy, r, r_eps, s.verify if attempt == 0 else s.retry_verify,
+                                sensor=ctx.sensor)
+            if not best:
                 if attempt == 0:
                     last = last or ("no circle of a can's radius through its points", None)
                 break
             # A circle through a lid or a box's top has its points at one height: no side, not verified.
-            candidates = [h for h in candidates
-                          if np.ptp(az[np.abs(np.hypot(axy[:, 0] - h[0], axy[:, 1] - h[1]) - h[2]) <= r_eps])
+            candidates = [(cx[k], cy[k], r[k], z0[k]) for k in best
+                          if np.ptp(az[np.abs(np.hypot(axy[:, 0] - cx[k], axy[:, 1] - cy[k]) - r[k]) <= r_eps])
                           >= 0.5 * c.min_can_height]
-            for cx0, cy0, r0, _ in candidates:
-                can, reason, claim = verify(this_round, cx0, cy0, r0, ctx)
+            for cx0, cy0, r0, h0 in candidates:
+                can, reason, claim = verify(this_round, cx0, cy0, r0, ctx, h0)
                 if can is not None:
                     cans.append(can)
                     ctx.found.append(can)

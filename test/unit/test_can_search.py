@@ -397,7 +397,8 @@ def test_radius_taper_measures_a_cone_and_not_a_cylinder():
 
 def test_a_tapered_round_object_is_rejected_as_tapered_and_a_can_is_not():
     """An upside-down pot (radius 45 -> 36 mm over 10 cm, 5 degrees) is rejected as tapered; a can of
-    the same size seen the same way is found; with the rule off (max_taper huge), the pot is a can."""
+    the same size seen the same way is found; with the rule off (max_taper huge), the pot is reported
+    as a can (or as two, each over a part of its height)."""
     pot = _round_object(0.045, 0.036, 0.1, seed=1)
     cans, rejected = _search_one(pot)
     assert cans == [], [c.radius for _, c in cans]
@@ -405,16 +406,20 @@ def test_a_tapered_round_object_is_rejected_as_tapered_and_a_can_is_not():
     cans, _ = _search_one(_round_object(0.04, 0.04, 0.1, seed=1))
     assert len(cans) == 1 and cans[0][1].radius == pytest.approx(0.04, abs=0.002)
     off = af.AutoConfig(cylinders=cs.CylinderSearchConfig(max_taper=10.0, taper_sigmas=1e3))
-    assert len(cs.search([pot], pot, np.eye(4), SENSOR, off)[0]) == 1
+    assert len(cs.search([pot], pot, np.eye(4), SENSOR, off)[0]) >= 1
 
 
 # Development seeds (0-49) of issue 13's cases where a can was missed before, one per cause: a wide
 # circle tangent to the can outranked its own circle (touching box 2), a circle through a box's corner
 # took the can with its disc (12), a box's face nearly tangent to the can was a "handle" (28), a big
 # box's faces crowded the can's triplets out (1, 47), a narrower can on a can made the lower one's
-# lid too high and "open" (can on can 34).
+# lid too high and "open" (can on can 34), triplets with a point on the can and one on the cup on it
+# gave circles between the two, the cup's circle was rejected for its inside without claiming it
+# (cup on can 22, 27, 30, 32, 34).
 @pytest.mark.parametrize("case, seed", [("can touching box", 2), ("can touching box", 12), ("can touching box", 28),
-                                        ("can touching box", 1), ("can touching box", 47), ("can on can", 34)])
+                                        ("can touching box", 1), ("can touching box", 47), ("can on can", 34),
+                                        ("cup on can", 22), ("cup on can", 27), ("cup on can", 30),
+                                        ("cup on can", 32), ("cup on can", 34)])
 def test_development_misses_are_found_where_they_stand(case, seed):
     """Every can of these generated scenes is found within 3 mm of its axis, on its support (base
     within 1 cm, height within 1.5 cm of the truth), and no other upright can is reported."""
