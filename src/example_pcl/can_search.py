@@ -583,11 +583,7 @@ def _robust_refit(xy, cx, cy, r, r_eps, ctx):
     if np.count_nonzero(np.abs(np.hypot(xy[:, 0] - fx, xy[:, 1] - fy) - fr) > s.robust_k * scale) < s.min_outliers:
         return cx, cy, r, np.inf  # nothing but noise: least squares is the better estimate
     on = np.flatnonzero(np.abs(np.hypot(xy[:, 0] - cx, xy[:, 1] - cy) - r) <= r_eps)
-    angle = np.arctan2(xy[on, 1] - cy, xy[on, 0] - cx)
-    order = np.argsort(angle)
-    a = angle[order]
-    gaps = np.append(np.diff(a), a[0] + 2 * np.pi - a[-1])
-    order = np.roll(order, -((int(np.argmax(gaps)) + 1) % len(a)))  # from the widest gap: the arc in order
+    order = g.angular_order(np.arctan2(xy[on, 1] - cy, xy[on, 0] - cx))[0]
     middle = on[order[len(order) // 4: len(order) - len(order) // 4]]
     try:
         mx, my, mr = g.fit_circle_geometric(xy[middle], (cx, cy), r, r_eps, max_iterations=c.fit_iterations,
@@ -711,12 +707,10 @@ def _handle(points, cx, cy, dist, r, r_eps, base, top, ctx):
     if mid.sum() < s.min_handle_points:
         return ""
     angle = np.arctan2(points[:, 1] - cy, points[:, 0] - cx)
-    a = np.sort(angle[mid])
-    gaps = np.append(np.diff(a), a[0] + 2 * np.pi - a[-1])
-    arc = float(2 * np.pi - gaps.max())
+    order, arc = g.angular_order(angle[mid])
     if arc > s.max_handle_arc:
         return ""
-    start = a[(int(np.argmax(gaps)) + 1) % len(a)]
+    start = angle[mid][order[0]]
     span = (angle - start) % (2 * np.pi) <= arc + 1e-9
     beyond = (dist > r + s.handle_reach) & (dist <= r + 2 * s.handle_reach)
     if (out & span & ((z <= base + 0.01) | (z >= top + 0.005))).any() or (beyond & span).sum() >= s.min_handle_points:

@@ -361,11 +361,18 @@ def arc_coverage(xy, cx, cy):
 
 def _angular_span(angle):
     """2 pi minus the widest gap between angles (rad, any order): 0 for fewer than 2."""
-    if len(angle) < 2:
-        return 0.0
-    angle = np.sort(angle)
-    widest = max(float(np.diff(angle).max()), 2 * np.pi - float(angle[-1] - angle[0]))
-    return 2 * np.pi - widest
+    return angular_order(angle)[1] if len(angle) >= 2 else 0.0
+
+
+def angular_order(angle):
+    """(order, span): the positions of the angles (rad, any order, at least one) in order around the
+    circle starting after the widest gap between them, so an arc seen across the +-pi cut stays in
+    one piece, and the arc they span (rad: 2 pi minus that gap)."""
+    order = np.argsort(angle)
+    a = angle[order]
+    gaps = np.append(np.diff(a), a[0] + 2 * np.pi - a[-1])
+    widest = int(np.argmax(gaps))
+    return np.roll(order, -((widest + 1) % len(a))), float(2 * np.pi - gaps[widest])
 
 
 def _fit_circle(xy, center0, radius0, free_radius, r_eps, max_iterations, tol, min_inliers, max_shift):
@@ -527,12 +534,7 @@ def shape_error(xy, cx, cy, radius, bins):
         return float("inf")
     angle = np.arctan2(xy[:, 1] - cy, xy[:, 0] - cx)
     residual = np.hypot(xy[:, 0] - cx, xy[:, 1] - cy) - radius
-    # Start the arcs at the widest gap, so a side seen across the +-pi cut stays in order.
-    order = np.argsort(angle)
-    a = angle[order]
-    gaps = np.append(np.diff(a), a[0] + 2 * np.pi - a[-1])
-    start = (int(np.argmax(gaps)) + 1) % len(a)
-    order = np.roll(order, -start)
+    order = angular_order(angle)[0]
     # np.array_split's arcs (the first len % bins one point longer), summed in one call.
     size, longer = divmod(len(order), bins)
     counts = np.full(bins, size)

@@ -617,3 +617,14 @@ def test_arc_coverage():
     assert g.arc_coverage(circle_points((0, 0), 1, 0, np.pi, 50), 0, 0) == pytest.approx(np.pi)
     assert g.arc_coverage(circle_points((0, 0), 1, 2.5, 4.0, 50), 0, 0) == pytest.approx(1.5)
     assert g.arc_coverage(np.array([[1.0, 0.0]]), 0, 0) == 0.0
+
+
+def test_angular_order_starts_after_the_widest_gap_across_the_seam():
+    """An arc from 2.5 to 4.0 rad (across +-pi), shuffled: ordered from its start at 2.5 to its end,
+    and its span 1.5 rad."""
+    angle = np.arctan2(*circle_points((0, 0), 1, 2.5, 4.0, 40)[:, ::-1].T)
+    shuffled = np.random.default_rng(0).permutation(angle)
+    order, span = g.angular_order(shuffled)
+    assert span == pytest.approx(1.5)
+    unwrapped = np.mod(shuffled[order] - 2.5, 2 * np.pi)
+    assert np.all(np.diff(unwrapped) > 0) and unwrapped[0] == pytest.approx(0.0, abs=1e-9)
