@@ -481,7 +481,8 @@ def verify(free, cx, cy, r, ctx, z0=None, again=True):
         # so the can it may stand on is looked for next.
         why = _open_top(pts[dist <= r + r_eps], cx, cy, r, r_eps, base, top, ctx)
         if why:
-            return None, why, claim(z_from=base)
+            # Not below its run: the side of a can under a wider cup may lie within r_eps of its circle.
+            return None, why, claim(z_from=max(base, z_lo))
         return None, (f"only {100 * fraction:.0f}% of the side within {1e3 * r_eps:.1f} mm of the circle "
                       f"(min {100 * c.min_inlier_fraction:.0f}%)"), None
     arc = g.arc_coverage(sxy, cx, cy)
