@@ -56,6 +56,7 @@ from example_pcl import lying
 from example_pcl import transforms
 from example_pcl.can import Can
 from example_pcl.errors import PerceptionError, require_positive
+from example_pcl.geometry import band_run
 
 
 @dataclass(frozen=True)
@@ -122,7 +123,7 @@ class CylinderSearchConfig:
     lying_gap: float = 0.01
     lying_directions: int = 36
     lying_join_angle: float = 0.1
-    lying_join_offset: float = 0.01
+    lying_join_offset: float = 0.015
     lying_join_gap: float = 0.15
     seed: int = 0
 
@@ -222,42 +223,6 @@ def best_circles(xy, cx, cy, r, eps, count, sensor=None, max_overlap=0.5):
         if len(out) == count:
             break
     return out
-
-
-# --- along the axis -------------------------------------------------------------------------------
-
-
-def band_run(band_on, band_inside, fraction, min_points, max_gap):
-    """The run of height bands a circle explains: (first, last) band, or None.
-
-    band_on, band_inside: points per band on the circle and inside its disc. The run starts at the
-    band with most points on the circle and grows while a band has at least max(min_points,
-    fraction x the start's) on it and no more inside than on it, over gaps of at most max_gap
-    bands."""
-    # The start is the fullest band with no more inside than on the circle (not the lid's band).
-    side_like = band_inside <= band_on
-    if not side_like.any():
-        return None
-    start = int(np.argmax(np.where(side_like, band_on, -1)))
-    need = max(min_points, fraction * band_on[start])
-    good = (band_on >= need) & side_like
-    if not good[start]:
-        return None
-    return _last_good(good, start, range(start - 1, -1, -1), max_gap), _last_good(good, start,
-                                                                                range(start + 1, len(good)), max_gap)
-
-
-def _last_good(good, start, order, max_gap):
-    """The last good band met walking `order` from start, over gaps of at most max_gap bands."""
-    last, gap = start, 0
-    for b in order:
-        if good[b]:
-            last, gap = b, 0
-        else:
-            gap += 1
-            if gap > max_gap:
-                break
-    return last
 
 
 # --- one cluster ----------------------------------------------------------------------------------
@@ -717,16 +682,14 @@ def search_cluster(points, ctx):
             break
     rest = np.flatnonzero(free)
     if len(rest) >= c.min_fit_points:
-        can, why = _lying(points, rest, ctx)
-        if can is not None:
+        found, why = _lying(points, rest, ctx)
+        for can in found:
             cans.append(can)
             ctx.found.append(can)
             free[can.indices] = False
-            rest = np.flatnonzero(free)
-        elif last is not None:
-            last = (f"{last[0]}; {why}", last[1])
-        else:
-            last = (why, None)
+        rest = np.flatnonzero(free)
+        if len(rest) >= c.min_fit_points:
+            last = (f"{last[0]}; {why}", last[1]) if last is not None else (why, None)
     if len(rest) >= c.min_fit_points or not (cans or rejections):
         reason, radius = last or ("nothing round left", None)
         rejections.append(Rejection(centroid=points[rest].mean(axis=0) if len(rest) else points.mean(axis=0),
@@ -735,16 +698,18 @@ def search_cluster(points, ctx):
 
 
 def _lying(points, rest, ctx):
-    """A lying can among the points `rest` (indices into the cluster's points, plane frame) that no
-    upright can claimed: (Can with lying=True and indices into the cluster's points, "") or
-    (None, why not)."""
+    """The lying cans among the points `rest` (indices into the cluster's points, plane frame) that no
+    upright can claimed: (list of Can with lying=True and indices into the cluster's points, why
+    the rest is no lying can)."""
     c = ctx.config
     pts = points[rest]
     sigma = _sigma(ctx, pts.mean(axis=0))
-    r_eps = max(c.r_eps, c.r_eps_sigmas * sigma)
-    found, why = lying.lying_can(pts, r_eps, sigma, c, ctx.search)
-    if found is None:
-        return None, why
+    found, why = lying.lying_cans(pts, max(c.r_eps, c.r_eps_sigmas * sigma), sigma, c, ctx.search, ctx.sensor)
+    return [_lying_result(can, rest, ctx) for can in found], why
+
+
+def _lying_result(found, rest, ctx):
+    """The Can of a lying can found (lying.LyingCan, masks over the points `rest` index)."""
     fit = found.fit
     ux, uy, _ = found.direction
     # The can's frame: z along the axis, x up from the table, y = z x x (right-handed).
@@ -756,7 +721,7 @@ def _lying(points, rest, ctx):
               height=found.length, rms_error=found.rms, arc_coverage=found.arc, n_points=int(found.mine.sum()),
               n_fit_points=int(found.inliers.sum()), center_plane=middle[:2].copy(), shape_error=found.shape_error,
               indices=rest[found.mine], support="table", base_seen=True, support_height=0.0, lying=True)
-    return can, ""
+    return can
 
 
 def search(clusters, standing, T_sensor_from_plane, sensor_plane, config):
