@@ -641,6 +641,13 @@ def search_cluster(points, ctx):
     bands = np.minimum((points[:, 2] / s.band_height).astype(np.int64), int(c.max_height / s.band_height))
     free = np.ones(len(points), bool)
     cans, rejections, last = [], [], None
+    # Lying cans first: an upright hypothesis through a lying can and what touches it could take its
+    # points as a round object that is no can, or make a box's corner beside it look round.
+    lying_cans, lying_why = _lying(points, np.arange(len(points)), ctx) if len(points) >= c.min_fit_points else ([], "")
+    for can in lying_cans:
+        cans.append(can)
+        ctx.found.append(can)
+        free[can.indices] = False
     for _ in range(int(s.max_rounds)):
         idx = np.flatnonzero(free)
         if len(idx) < c.min_fit_points:
@@ -681,17 +688,17 @@ def search_cluster(points, ctx):
         if not progress:
             break
     rest = np.flatnonzero(free)
-    if len(rest) >= c.min_fit_points:
-        found, why = _lying(points, rest, ctx)
+    if len(rest) >= c.min_fit_points and len(rest) < len(points) - sum(can.n_points for can in lying_cans):
+        # The upright search took points: a lying can beside an upright one may stand out now.
+        found, lying_why = _lying(points, rest, ctx)
         for can in found:
             cans.append(can)
             ctx.found.append(can)
             free[can.indices] = False
         rest = np.flatnonzero(free)
-        if len(rest) >= c.min_fit_points:
-            last = (f"{last[0]}; {why}", last[1]) if last is not None else (why, None)
     if len(rest) >= c.min_fit_points or not (cans or rejections):
         reason, radius = last or ("nothing round left", None)
+        reason = f"{reason}; {lying_why}" if lying_why else reason
         rejections.append(Rejection(centroid=points[rest].mean(axis=0) if len(rest) else points.mean(axis=0),
                                     n_points=len(rest), reason=reason, radius=radius))
     return cans, rejections

@@ -137,39 +137,37 @@ def fit_lying_cylinders(points, r_eps, min_radius, max_radius, max_gap, directio
     sq = None if sensor is None else (sensor[0] - origin[0], sensor[1] - origin[1], sensor[2])
     theta = np.arange(directions) * np.pi / directions
     lateral = -q[:, 0][None, :] * np.sin(theta)[:, None] + q[:, 1][None, :] * np.cos(theta)[:, None]
-    subsets = _subsets(q, subset_radius, seeds=12)
+    subsets = _subsets(q, subset_radius, seeds=8)
     cl, cz, r = _kasa(lateral, z, subsets)  # (K, D) each
-    members = np.abs(np.hypot(lateral[None] - cl[..., None], z[None, None] - cz[..., None]) - r[..., None]) <= r_eps
-    # Only circles of about a can's radius that about touch the table are refined.
+    # Only circles of about a can's radius that about touch the table are scored and refined.
     with np.errstate(invalid="ignore"):
-        ok = (np.isfinite(r) & (r >= 0.5 * min_radius) & (r <= 1.5 * max_radius)
-              & (np.abs(cz - r) <= 0.25 * r + 2 * max_gap))
-    score = np.where(ok, members.sum(axis=2), -1).ravel()
+        ok = np.flatnonzero((np.isfinite(r) & (r >= 0.5 * min_radius) & (r <= 1.5 * max_radius)
+                             & (np.abs(cz - r) <= 0.25 * r + 2 * max_gap)).ravel())
+    k_ok, d_ok = np.divmod(ok, directions)
+    members = np.abs(np.hypot(lateral[d_ok] - cl[k_ok, d_ok, None], z - cz[k_ok, d_ok, None])
+                     - r[k_ok, d_ok, None]) <= r_eps
     fits = []
-    for h in _distinct(members.reshape(-1, len(z)), score, count):
-        k, d = divmod(h, directions)
+    for h in _distinct(members, members.sum(axis=1), count):
+        k, d = k_ok[h], d_ok[h]
         # First on its subset (a piece of one can), then on the run of bands along the axis it explains.
         fit = _refine(q, z, theta[d], cl[k, d], cz[k, d], r[k, d], r_eps, iterations, subsets[k], max_radius, max_gap,
                       sq)
-        if fit is None:
+        # No can's radius, or not on the table: the refits below would not make it one.
+        if fit is None or not min_radius <= fit[3] <= max_radius or abs(fit[2] - fit[3]) > max_gap:
             continue
         # Only the part of the axis the circle explains: not a neighbour's face beyond its end.
         run = _explained(q, z, fit, r_eps, sq, band, band_fraction, min_band_points, max_band_gap)
         if run is None:
             continue
-        lo, hi = run
-        axial = _on_axis(q, fit[0])[0]
-        fit = _refine(q, z, *fit[:4], r_eps, iterations, (axial >= lo) & (axial <= hi), max_radius, max_gap, sq) or fit
-        # The ends' discs lie inside the circle near its rim and pull it smaller: refit without the
-        # slabs of r_eps at both ends of the cylinder's axial extent.
+        # Refitted on it, but without the slabs of r_eps at both ends of the cylinder's axial extent: the
+        # ends' discs lie inside the circle near its rim and pull it smaller.
         axial, lateral = _on_axis(q, fit[0])
-        near = (axial >= lo - band) & (axial <= hi + band)
-        e_lo, e_hi = end_positions(axial[near], np.hypot(lateral[near] - fit[1], z[near] - fit[2]), fit[3], r_eps)
+        e_lo, e_hi = end_positions(axial, np.hypot(lateral - fit[1], z - fit[2]), fit[3], r_eps, run, band)
         trimmed = (axial > e_lo + r_eps) & (axial < e_hi - r_eps)
         fit = _refine(q, z, *fit[:4], r_eps, iterations, trimmed, max_radius, max_gap, sq) or fit
         t, off, zc, rad, rms, n = fit
         fits.append(LyingFit(direction=np.array([np.cos(t), np.sin(t)]), origin=origin, offset=off, zc=zc,
-                             radius=rad, rms=rms, n_inliers=n, extent=(lo, hi)))
+                             radius=rad, rms=rms, n_inliers=n, extent=run))
     return sorted(fits, key=lambda f: -f.n_inliers)
 
 
@@ -211,10 +209,15 @@ def _explained(q, z, fit, r_eps, sensor, band, fraction, min_points, max_gap):
     return None if run is None else (a0 + run[0] * band, a0 + (run[1] + 1) * band)
 
 
-def end_positions(axial, rho, r, r_eps):
+def end_positions(axial, rho, r, r_eps, extent=(-np.inf, np.inf), band=0.0):
     """The axial coordinates (m) of a cylinder's two ends: the 0.5th and 99.5th percentiles of the
-    points within r + 2 r_eps of the axis (rho: their distances from it)."""
-    near = rho <= r + 2 * r_eps
+    points within r + 2 r_eps of the axis (rho: their distances from it) within the extent (lo, hi)
+    its circle explains, and of the points inside its circle (an end's disc) within `band` (m)
+    beyond it: the band holding an end's disc is no side band, but a neighbour's side touching
+    the end, seen beyond it, is not the can's."""
+    inside = (axial >= extent[0]) & (axial <= extent[1])
+    near = ((rho <= r + 2 * r_eps) & inside) | ((rho < r - r_eps) & (axial >= extent[0] - band)
+                                                 & (axial <= extent[1] + band))
     if near.sum() < 2:
         return float(axial.min()), float(axial.max())
     lo, hi = np.percentile(axial[near], [0.5, 99.5])
@@ -253,7 +256,7 @@ def _refine(q, z, theta, d, zc, r, r_eps, iterations, use, max_radius, max_gap, 
         theta, d, zc, r = theta + step[0], d + step[1], zc + step[2], r + step[3]
         if not 0 < r <= 2 * max_radius or abs(zc - r) > 0.25 * r + 2 * max_gap:
             return None
-        if np.abs(step[1:]).max() < 1e-5 and abs(step[0]) < 1e-4:
+        if np.abs(step[1:]).max() < 2e-5 and abs(step[0]) < 2e-4:
             break
     dl, dz = _on_axis(q, theta)[1] - d, z - zc
     residual = np.hypot(dl, dz) - r
@@ -340,7 +343,7 @@ def lying_can(points, r_eps, sigma, config, search, sensor=None):
         top = float(np.percentile(points[:, 2], 99))
         return None, f"lying: {100 * top:.1f} cm high, more than a lying can's {200 * c.max_radius:.0f} cm"
     fits = fit_lying_cylinders(points[low], r_eps, c.min_radius, c.max_radius, s.lying_gap + 3 * sigma,
-                               s.lying_directions, c.fit_iterations, s.fit_points, band=s.band_height,
+                               s.lying_directions, min(c.fit_iterations, 10), s.fit_points, band=s.band_height,
                                band_fraction=s.band_fraction, min_band_points=s.min_band_points,
                                max_band_gap=s.max_band_gap, sensor=sensor)
     if not fits:
@@ -366,9 +369,7 @@ def _judge(points, fit, r_eps, sigma, c, s, sensor):
         return None, (f"lying: its axis is {1e3 * fit.zc:.0f} mm above the table, {1e3 * gap:+.0f} mm off its radius "
                       f"(max {1e3 * (s.lying_gap + 3 * sigma):.0f}; not a cylinder lying on the table)")
     axial, lateral, z, rho = fit.coordinates(points)
-    # Its ends: within a band beyond the extent its circle explains (an end's disc is no side).
-    ext = (axial >= fit.extent[0] - s.band_height) & (axial <= fit.extent[1] + s.band_height)
-    a_lo, a_hi = end_positions(axial[ext], rho[ext], r, r_eps)
+    a_lo, a_hi = end_positions(axial, rho, r, r_eps, fit.extent, s.band_height)
     # The side without the slabs of r_eps at the ends, where the ends' discs meet it.
     inner = (axial > a_lo + r_eps) & (axial < a_hi - r_eps)
     # Points near the circle on its far half are another object's (a box's face behind it).
