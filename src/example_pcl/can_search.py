@@ -688,8 +688,8 @@ def search_cluster(points, ctx):
         if not progress:
             break
     rest = np.flatnonzero(free)
-    if len(rest) >= c.min_fit_points and len(rest) < len(points) - sum(can.n_points for can in lying_cans):
-        # The upright search took points: a lying can beside an upright one may stand out now.
+    if len(rest) >= c.min_fit_points and len(cans) > len(lying_cans):
+        # Upright cans found: a lying can beside one may stand out without it.
         found, lying_why = _lying(points, rest, ctx)
         for can in found:
             cans.append(can)

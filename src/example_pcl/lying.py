@@ -237,20 +237,24 @@ def _refine(q, z, theta, d, zc, r, r_eps, iterations, use, max_radius, max_gap, 
         axial, lat = _on_axis(q, theta)
         dl, dz = lat - d, z - zc
         rho = np.hypot(dl, dz)
+        residual = rho - r
         mine = use & _facing(dl, dz, theta, d, zc, sensor)
-        within = np.abs(rho[mine] - r)
+        within = np.abs(residual[mine])
         within = within[within <= r_eps]
-        cutoff = min(2 * r_eps, k * max(1.4826 * float(np.median(within)) if len(within) else np.inf, min_scale))
-        near = (np.abs(rho - r) < cutoff) & mine
-        if near.sum() < 4:
+        scale = 1.4826 * float(np.partition(within, len(within) // 2)[len(within) // 2]) if len(within) else np.inf
+        cutoff = min(2 * r_eps, k * max(scale, min_scale))
+        near = np.flatnonzero((np.abs(residual) < cutoff) & mine)
+        if len(near) < 4:
             return None
-        rho_n = np.maximum(rho[near], 1e-9)
+        dl, dz, res, rho_n = dl[near], dz[near], residual[near], np.maximum(rho[near], 1e-9)
         # d rho / d theta = (dl / rho) d lat / d theta, and d lat / d theta = -axial.
-        J = np.column_stack([-dl[near] * axial[near] / rho_n, -dl[near] / rho_n, -dz[near] / rho_n,
-                             -np.ones(near.sum())])
-        w = (1 - ((rho[near] - r) / cutoff) ** 2) ** 2
+        J = np.empty((len(near), 4))
+        J[:, 1], J[:, 2], J[:, 3] = -dl / rho_n, -dz / rho_n, -1.0
+        J[:, 0] = J[:, 1] * axial[near]
+        w = (1 - (res / cutoff) ** 2) ** 2
+        Jw = J.T * w
         try:
-            step = np.linalg.solve(J.T @ (w[:, None] * J), -(J.T @ (w * (rho[near] - r))))
+            step = np.linalg.solve(Jw @ J, -(Jw @ res))
         except np.linalg.LinAlgError:
             return None
         theta, d, zc, r = theta + step[0], d + step[1], zc + step[2], r + step[3]
