@@ -37,9 +37,10 @@ cluster's, height bands computed once per cluster), fits by geometry.fit_circles
 fit_circle_geometric (fit_cylinder's objective with less overhead) and takes percentiles by
 partial sorts; figures in docs/can_search.md.
 
-7. **Lying cans.** What no upright can claims is tried as a can on its side (example_pcl.lying: a
-   horizontal cylinder one radius above the table, judged like a side); the parts of one lying can
-   that an object across it splits into two clusters are joined (_join_lying).
+7. **Lying cans.** Each cluster is searched for cans on their side first (example_pcl.lying:
+   horizontal cylinders one radius above the table, judged like a side), and what the upright
+   rounds leave again where they found upright cans; the parts of one lying can that an object
+   across it splits into two clusters are joined (_join_lying).
 
 What no hypothesis claims stays a rejected object with the reason of its best hypothesis (and why
 it is no lying can either).
@@ -86,9 +87,9 @@ class CylinderSearchConfig:
     by more than max_taper (m per m of height between them: 0.07, a wall 4 degrees off vertical;
     generated cans show at most 0.006, real ones 0.03) and by more than taper_sigmas standard
     errors of the change (depth noise sigma, so noise alone almost never does it).
-    lying_gap (m), lying_directions: what no upright can claims is tried as a lying can
-    (example_pcl.lying): its axis, scanned over lying_directions directions, lies one radius above
-    the table to within lying_gap (and 3 sigma). lying_join_angle (rad), lying_join_offset (m),
+    lying_gap (m), lying_directions: lying cans are looked for in each cluster and in what the upright
+    search leaves (example_pcl.lying): a lying can's axis, scanned over lying_directions directions,
+    lies one radius above the table to within lying_gap (and 3 sigma). lying_join_angle (rad), lying_join_offset (m),
     lying_join_gap (m): two lying cans are the parts of one that an object across it splits
     (_join_lying).
     seed: of the RANSAC sampling (the result is the same for the same cloud).

@@ -1,13 +1,15 @@
-"""Lying cans (issue 13): a cylinder on its side, its axis parallel to the table, in what the
-upright search (example_pcl.can_search) leaves of a cluster.
+"""Lying cans (issue 13): cylinders on their side, their axis parallel to the table, in a cluster
+of points that may hold other objects touching them (a box, an upright can, another lying can).
 
 Pure NumPy; knows nothing of ROS. Everything is in the *plane frame* (z up from the table, metres).
 A lying can's axis is the horizontal line (direction angle theta about z, lateral offset d, height
-zc) from which its side points lie at the radius r. :func:`fit_lying_cylinder` scans theta
-(a linear circle fit of the points projected onto the plane perpendicular to each direction: the
-right direction collapses the side onto one circle, another one spreads it into an ellipse), then
-refines (theta, d, zc, r) by Gauss-Newton on the points near the cylinder. :func:`lying_can`
-judges the fit like an upright can's side (docs/can_search.md, "Lying cans").
+zc) from which its side points lie at the radius r. :func:`fit_lying_cylinders` scans theta (a
+linear circle fit of the points projected onto the plane perpendicular to each direction: the
+right direction collapses the side onto one circle, another one spreads it into an ellipse), for
+all the points and for pieces of them around seeds (a can's own points), refines the distinct
+best by a robust Gauss-Newton on the half facing the sensor, and keeps the run along the axis that
+the circle explains. :func:`lying_can` judges them like an upright can's side, :func:`lying_cans`
+takes the cans found out one after another (docs/can_search.md, "Lying cans").
 """
 import dataclasses
 from dataclasses import dataclass
