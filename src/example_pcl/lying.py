@@ -113,7 +113,7 @@ def _distinct(members, score, count, max_overlap=0.5, scan=64):
 
 def fit_lying_cylinders(points, r_eps, min_radius, max_radius, max_gap, directions=36, iterations=15,
                         max_points=300, count=3, subset_radius=0.05, band=0.01, band_fraction=0.2, min_band_points=3,
-                        max_band_gap=1, sensor=None):
+                        max_band_gap=1, sensor=None, min_own=0.6):
     """Up to `count` distinct horizontal cylinders explaining points (float64 (N, 3), plane frame, m)
     of a lying can and maybe other objects touching it: LyingFits, most inliers first.
 
@@ -121,8 +121,8 @@ def fit_lying_cylinders(points, r_eps, min_radius, max_radius, max_gap, directio
     (to within a quarter radius and 2 max_gap, m) above the table: a Kasa circle of the points
     projected along each of `directions` axis directions over 180 degrees, for all the points and
     for the points within subset_radius (m, seen from above) of seeds spread over them (a can's
-    own points, with little of a neighbour's). The distinct ones with most points within r_eps are
-    refined by Gauss-Newton on (theta, offset, zc, r) over the points within 2 r_eps; then only the
+    own points, with little of a neighbour's). Of those that hold at least min_own of their subset
+    within r_eps, the distinct ones with most points within r_eps are refined by Gauss-Newton on (theta, offset, zc, r) over the points within 2 r_eps; then only the
     run of `band`-long bands along the axis that the circle explains (geometry.band_run: each with
     at least band_fraction of the fullest band's points on it and no more inside: not a neighbour's
     top) is kept (the fit's extent), refitted on it, and refitted again without the slabs of r_eps
@@ -146,10 +146,13 @@ def fit_lying_cylinders(points, r_eps, min_radius, max_radius, max_gap, directio
         ok = np.flatnonzero((np.isfinite(r) & (r >= 0.5 * min_radius) & (r <= 1.5 * max_radius)
                              & (np.abs(cz - r) <= 0.25 * r + 2 * max_gap)).ravel())
     k_ok, d_ok = np.divmod(ok, directions)
-    members = np.abs(np.hypot(lateral[d_ok] - cl[k_ok, d_ok, None], z - cz[k_ok, d_ok, None])
-                     - r[k_ok, d_ok, None]) <= r_eps
+    r_ok = r[k_ok, d_ok, None]
+    rho2 = (lateral[d_ok] - cl[k_ok, d_ok, None]) ** 2 + (z - cz[k_ok, d_ok, None]) ** 2
+    members = (rho2 <= (r_ok + r_eps) ** 2) & (rho2 >= np.maximum(r_ok - r_eps, 0.0) ** 2)
+    # A piece of a can lies on its circle: a circle that leaves most of its subset off is none.
+    own = (members & subsets[k_ok]).sum(axis=1) / np.maximum(subsets[k_ok].sum(axis=1), 1)
     fits = []
-    for h in _distinct(members, members.sum(axis=1), count):
+    for h in _distinct(members, np.where(own >= min_own, members.sum(axis=1), 0), count):
         k, d = k_ok[h], d_ok[h]
         # First on its subset (a piece of one can), then on the run of bands along the axis it explains.
         fit = _refine(q, z, theta[d], cl[k, d], cz[k, d], r[k, d], r_eps, iterations, subsets[k], max_radius, max_gap,
