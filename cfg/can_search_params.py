@@ -54,7 +54,7 @@ GROUPS = {
         ("lying_gap", "double", 0.01, 0.0, 0.1, "a lying can's axis is one radius above the table to within this (m)"),
         ("lying_directions", "int", 36, 4, 360, "axis directions scanned over 180 degrees"),
         ("lying_join_angle", "double", 0.1, 0.0, 1.57, "two lying parts are one can within this angle (rad)"),
-        ("lying_join_offset", "double", 0.01, 0.0, 0.1, "and each axis this near the other's middle (m)"),
+        ("lying_join_offset", "double", 0.015, 0.0, 0.1, "and each axis this near the other's middle (m)"),
         ("lying_join_gap", "double", 0.15, 0.0, 1.0, "and at most this far apart along it (m)"),
     ],
 }

@@ -37,9 +37,10 @@ cluster's, height bands computed once per cluster), fits by geometry.fit_circles
 fit_circle_geometric (fit_cylinder's objective with less overhead) and takes percentiles by
 partial sorts; figures in docs/can_search.md.
 
-7. **Lying cans.** What no upright can claims is tried as a can on its side (example_pcl.lying: a
-   horizontal cylinder one radius above the table, judged like a side); the parts of one lying can
-   that an object across it splits into two clusters are joined (_join_lying).
+7. **Lying cans.** Each cluster is searched for cans on their side first (example_pcl.lying:
+   horizontal cylinders one radius above the table, judged like a side), and what the upright
+   rounds leave again where they found upright cans; the parts of one lying can that an object
+   across it splits into two clusters are joined (_join_lying).
 
 What no hypothesis claims stays a rejected object with the reason of its best hypothesis (and why
 it is no lying can either).
@@ -56,6 +57,7 @@ from example_pcl import lying
 from example_pcl import transforms
 from example_pcl.can import Can
 from example_pcl.errors import PerceptionError, require_positive
+from example_pcl.geometry import band_run
 
 
 @dataclass(frozen=True)
@@ -90,9 +92,9 @@ class CylinderSearchConfig:
     by more than max_taper (m per m of height between them: 0.07, a wall 4 degrees off vertical;
     generated cans show at most 0.006, real ones 0.03) and by more than taper_sigmas standard
     errors of the change (depth noise sigma, so noise alone almost never does it).
-    lying_gap (m), lying_directions: what no upright can claims is tried as a lying can
-    (example_pcl.lying): its axis, scanned over lying_directions directions, lies one radius above
-    the table to within lying_gap (and 3 sigma). lying_join_angle (rad), lying_join_offset (m),
+    lying_gap (m), lying_directions: lying cans are looked for in each cluster and in what the upright
+    search leaves (example_pcl.lying): a lying can's axis, scanned over lying_directions directions,
+    lies one radius above the table to within lying_gap (and 3 sigma). lying_join_angle (rad), lying_join_offset (m),
     lying_join_gap (m): two lying cans are the parts of one that an object across it splits
     (_join_lying).
     seed: of the RANSAC sampling (the result is the same for the same cloud).
@@ -131,7 +133,7 @@ class CylinderSearchConfig:
     lying_gap: float = 0.01
     lying_directions: int = 36
     lying_join_angle: float = 0.1
-    lying_join_offset: float = 0.01
+    lying_join_offset: float = 0.015
     lying_join_gap: float = 0.15
     seed: int = 0
 
@@ -249,42 +251,6 @@ def best_circles(xy, cx, cy, r, eps, count, sensor=None, max_overlap=0.5):
         if len(taken) == count:
             break
     return taken
-
-
-# --- along the axis -------------------------------------------------------------------------------
-
-
-def band_run(band_on, band_inside, fraction, min_points, max_gap):
-    """The run of height bands a circle explains: (first, last) band, or None.
-
-    band_on, band_inside: points per band on the circle and inside its disc. The run starts at the
-    band with most points on the circle and grows while a band has at least max(min_points,
-    fraction x the start's) on it and no more inside than on it, over gaps of at most max_gap
-    bands."""
-    # The start is the fullest band with no more inside than on the circle (not the lid's band).
-    side_like = band_inside <= band_on
-    if not side_like.any():
-        return None
-    start = int(np.argmax(np.where(side_like, band_on, -1)))
-    need = max(min_points, fraction * band_on[start])
-    good = (band_on >= need) & side_like
-    if not good[start]:
-        return None
-    return _last_good(good, start, range(start - 1, -1, -1), max_gap), _last_good(good, start,
-                                                                                range(start + 1, len(good)), max_gap)
-
-
-def _last_good(good, start, order, max_gap):
-    """The last good band met walking `order` from start, over gaps of at most max_gap bands."""
-    last, gap = start, 0
-    for b in order:
-        if good[b]:
-            last, gap = b, 0
-        else:
-            gap += 1
-            if gap > max_gap:
-                break
-    return last
 
 
 # --- one cluster ----------------------------------------------------------------------------------
@@ -750,6 +716,13 @@ def search_cluster(points, ctx):
     bands = np.minimum((points[:, 2] / s.band_height).astype(np.int64), int(c.max_height / s.band_height))
     free = np.ones(len(points), bool)
     cans, rejections, last = [], [], None
+    # Lying cans first: an upright hypothesis through a lying can and what touches it could take its
+    # points as a round object that is no can, or make a box's corner beside it look round.
+    lying_cans, lying_why = _lying(points, np.arange(len(points)), ctx) if len(points) >= c.min_fit_points else ([], "")
+    for can in lying_cans:
+        cans.append(can)
+        ctx.found.append(can)
+        free[can.indices] = False
     for _ in range(int(s.max_rounds)):
         idx = np.flatnonzero(free)
         if len(idx) < c.min_fit_points:
@@ -799,36 +772,53 @@ def search_cluster(points, ctx):
                 break
         if not progress:
             break
-    rest = np.flatnonzero(free)
-    if len(rest) >= c.min_fit_points:
-        can, why = _lying(points, rest, ctx)
-        if can is not None:
-            cans.append(can)
-            ctx.found.append(can)
+    if len(cans) > len(lying_cans):
+        # Upright cans found: the lying cans are looked for again without them. A lying can beside one
+        # may stand out only now, and one found before may have taken a neighbour's side at its end for
+        # its end's disc (too long).
+        for can in lying_cans:
+            free[can.indices] = True
+        # Nor the points just around an upright can that its own points leave (its side's noise, the
+        # points a sensor interpolates between it and a lying can's end).
+        near_upright = np.zeros(len(points), bool)
+        for can in cans[len(lying_cans):]:
+            cx, cy = can.center_plane
+            reach = can.radius + 2 * max(c.r_eps, c.r_eps_sigmas * _sigma(ctx, (cx, cy, 0.5 * can.height)))
+            near_upright |= ((points[:, 0] - cx) ** 2 + (points[:, 1] - cy) ** 2 <= reach * reach) \
+                & (points[:, 2] <= can.support_height + can.height + s.band_height)
+        lying_points = np.flatnonzero(free & ~near_upright)
+        again, why = _lying(points, lying_points, ctx) if len(lying_points) >= c.min_fit_points else ([], lying_why)
+        if len(again) >= len(lying_cans):
+            for can in lying_cans:
+                cans.remove(can)
+                ctx.found.remove(can)
+            lying_cans, lying_why = again, why
+            cans.extend(again)
+            ctx.found.extend(again)
+        for can in lying_cans:
             free[can.indices] = False
-            rest = np.flatnonzero(free)
-        elif last is not None:
-            last = (f"{last[0]}; {why}", last[1])
-        else:
-            last = (why, None)
+    rest = np.flatnonzero(free)
     if len(rest) >= c.min_fit_points or not (cans or rejections):
         reason, radius = last or ("nothing round left", None)
+        reason = f"{reason}; {lying_why}" if lying_why else reason
         rejections.append(Rejection(centroid=points[rest].mean(axis=0) if len(rest) else points.mean(axis=0),
                                     n_points=len(rest), reason=reason, radius=radius))
     return cans, rejections
 
 
 def _lying(points, rest, ctx):
-    """A lying can among the points `rest` (indices into the cluster's points, plane frame) that no
-    upright can claimed: (Can with lying=True and indices into the cluster's points, "") or
-    (None, why not)."""
+    """The lying cans among the points `rest` (indices into the cluster's points, plane frame) that no
+    upright can claimed: (list of Can with lying=True and indices into the cluster's points, why
+    the rest is no lying can)."""
     c = ctx.config
     pts = points[rest]
     sigma = _sigma(ctx, pts.mean(axis=0))
-    r_eps = max(c.r_eps, c.r_eps_sigmas * sigma)
-    found, why = lying.lying_can(pts, r_eps, sigma, c, ctx.search)
-    if found is None:
-        return None, why
+    found, why = lying.lying_cans(pts, max(c.r_eps, c.r_eps_sigmas * sigma), sigma, c, ctx.search, ctx.sensor)
+    return [_lying_result(can, rest, ctx) for can in found], why
+
+
+def _lying_result(found, rest, ctx):
+    """The Can of a lying can found (lying.LyingCan, masks over the points `rest` index)."""
     fit = found.fit
     T_plane_from_can = lying.plane_from_can(found.start, found.direction)
     middle = found.start + 0.5 * found.length * found.direction
@@ -836,7 +826,7 @@ def _lying(points, rest, ctx):
               height=found.length, rms_error=found.rms, arc_coverage=found.arc, n_points=int(found.mine.sum()),
               n_fit_points=int(found.inliers.sum()), center_plane=middle[:2].copy(), shape_error=found.shape_error,
               indices=rest[found.mine], support="table", base_seen=True, support_height=0.0, lying=True)
-    return can, ""
+    return can
 
 
 def search(clusters, standing, T_sensor_from_plane, sensor_plane, config):

@@ -693,3 +693,41 @@ def biweight_loss(xy, cx, cy, r, cutoff):
     xy = _xy(xy)
     t = np.minimum(np.abs(np.hypot(xy[:, 0] - cx, xy[:, 1] - cy) - r) / cutoff, 1.0)
     return float(np.sum(1.0 - (1.0 - t * t) ** 3))
+
+
+def band_run(band_on, band_inside, fraction, min_points, max_gap, blocked=None):
+    """The run of bands along a cylinder's axis that its circle explains: (first, last) band, or None.
+
+    band_on, band_inside: points per band on the circle and inside its disc (height bands of an
+    upright can in can_search, bands along a lying can's axis in lying). The run starts at the band
+    with most points on the circle and grows while a band has at least max(min_points, fraction x
+    the start's) on it and no more inside than on it, over gaps of at most max_gap bands; a band
+    `blocked` (bool, per band; None: none) ends it, no gap (another object is seen there)."""
+    # The start is the fullest band with no more inside than on the circle (not the lid's band).
+    side_like = band_inside <= band_on
+    if not side_like.any():
+        return None
+    start = int(np.argmax(np.where(side_like, band_on, -1)))
+    need = max(min_points, fraction * band_on[start])
+    good = (band_on >= need) & side_like
+    if not good[start]:
+        return None
+    blocked = np.zeros(len(good), bool) if blocked is None else blocked
+    return (_last_good(good, blocked, start, range(start - 1, -1, -1), max_gap),
+            _last_good(good, blocked, start, range(start + 1, len(good)), max_gap))
+
+
+def _last_good(good, blocked, start, order, max_gap):
+    """The last good band met walking `order` from start, over gaps of at most max_gap bands, up to
+    a blocked band."""
+    last, gap = start, 0
+    for b in order:
+        if blocked[b]:
+            break
+        if good[b]:
+            last, gap = b, 0
+        else:
+            gap += 1
+            if gap > max_gap:
+                break
+    return last

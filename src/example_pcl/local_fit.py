@@ -254,8 +254,8 @@ def _refit_lying(pts, T_sensor_from_plane, T_plane_from_sensor, sensor_plane, ca
     r_eps = max(a.r_eps, a.r_eps_sigmas * sigma)
     s = a.cylinders
     fit = lying.refine_lying_cylinder(points, start, u, can.radius, r_eps, a.max_radius, s.lying_gap + 3 * sigma,
-                                      a.fit_iterations, c.max_fit_points)
-    found, why = lying.judge_lying(points, fit, r_eps, sigma, a, s)
+                                      a.fit_iterations, c.max_fit_points, sensor_plane)
+    found, why = lying.judge_lying(points, fit, r_eps, sigma, a, s, sensor_plane)
     if found is None:
         raise PerceptionError(why)
     if abs(found.fit.radius - can.radius) > c.max_radius_change:

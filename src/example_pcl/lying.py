@@ -1,16 +1,19 @@
-"""Lying cans (issue 13): a cylinder on its side, its axis parallel to the table, in what the
-upright search (example_pcl.can_search) leaves of a cluster.
+"""Lying cans (issue 13): cylinders on their side, their axis parallel to the table, in a cluster
+of points that may hold other objects touching them (a box, an upright can, another lying can).
 
 Pure NumPy; knows nothing of ROS. Everything is in the *plane frame* (z up from the table, metres).
 A lying can's axis is the horizontal line (direction angle theta about z, lateral offset d, height
-zc) from which its side points lie at the radius r. :func:`fit_lying_cylinder` scans theta
-(a linear circle fit of the points projected onto the plane perpendicular to each direction: the
-right direction collapses the side onto one circle, another one spreads it into an ellipse), then
-refines (theta, d, zc, r) by Gauss-Newton on the points near the cylinder. :func:`lying_can`
-judges the fit like an upright can's side (docs/can_search.md, "Lying cans"). The tracker's
+zc) from which its side points lie at the radius r. :func:`fit_lying_cylinders` scans theta (a
+linear circle fit of the points projected onto the plane perpendicular to each direction: the
+right direction collapses the side onto one circle, another one spreads it into an ellipse), for
+all the points and for pieces of them around seeds (a can's own points), refines the distinct
+best by a robust Gauss-Newton on the half facing the sensor, and keeps the run along the axis that
+the circle explains. :func:`lying_can` judges them like an upright can's side, :func:`lying_cans`
+takes the cans found out one after another (docs/can_search.md, "Lying cans"). The tracker's
 per-frame refit (example_pcl.local_fit) starts the refinement from the previous frame's cylinder
 instead (:func:`refine_lying_cylinder`) and judges it the same way (:func:`judge_lying`).
 """
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -23,7 +26,8 @@ class LyingFit:
     """A horizontal cylinder fitted to points (plane frame, m): unit direction (float64 (2,)) of the
     axis seen from above; origin (float64 (2,)): the points' mean (x, y), from which the axial and
     lateral coordinates are measured; offset: the axis' lateral coordinate (along (-uy, ux)); zc:
-    its height; radius; rms: RMS radial residual of the inliers; n_inliers (within r_eps)."""
+    its height; radius; rms: RMS radial residual of the inliers; n_inliers (within r_eps); extent: the
+    axial coordinates (m) of the part of the axis its circle explains."""
 
     direction: np.ndarray
     origin: np.ndarray
@@ -32,6 +36,7 @@ class LyingFit:
     radius: float
     rms: float
     n_inliers: int
+    extent: tuple = (-np.inf, np.inf)
 
     def coordinates(self, points):
         """(axial, lateral, z, distance from the axis) of points (float64 (N, 3)): each (N,) (m)."""
@@ -48,149 +53,280 @@ class LyingFit:
         return np.array([xy[0], xy[1], self.zc])
 
 
-def _kasa(lateral, z):
-    """Kasa circles of (lateral[k], z) per row k (lateral float64 (K, N), z (N,)): (c_l, c_z, r) (K,) each."""
-    lm = lateral.mean(axis=1, keepdims=True)
-    zm = z.mean()
-    u, v = lateral - lm, (z - zm)[None, :]
+def _kasa(lateral, z, weights):
+    """Kasa circles of the points (lateral[d], z) per direction d and subset k: lateral float64 (D, N),
+    z (N,), weights (K, N) 0/1 masks. Returns (c_l, c_z, r), each (K, D); NaN for a subset of fewer
+    than 3 points or (nearly) collinear ones. One matrix product for all subsets and directions."""
+    k, (d, n) = len(weights), lateral.shape
+    lm, zm = lateral.mean(axis=1, keepdims=True), z.mean()
+    u, v = lateral - lm, z - zm  # centred, for precision
     s = u * u + v * v
-    n = lateral.shape[1]
-    A = np.empty((len(lateral), 3, 3))
-    A[:, 0, 0], A[:, 0, 1], A[:, 0, 2] = (u * u).sum(1), (u * v).sum(1), u.sum(1)
-    A[:, 1, 1], A[:, 1, 2], A[:, 2, 2] = (v * v).sum(1), v.sum(1), n
-    A[:, 1, 0], A[:, 2, 0], A[:, 2, 1] = A[:, 0, 1], A[:, 0, 2], A[:, 1, 2]
-    b = np.stack([(u * s).sum(1), (v * s).sum(1), s.sum(1)], axis=1)
-    with np.errstate(all="ignore"):
-        try:
-            x = np.linalg.solve(A, b[..., None])[..., 0]
-        except np.linalg.LinAlgError:
-            x = np.full((len(lateral), 3), np.nan)
-        cu, cv = x[:, 0] / 2, x[:, 1] / 2
-        r = np.sqrt(x[:, 2] + cu * cu + cv * cv)
-    return cu + lm[:, 0], cv + zm, r
+    w = np.asarray(weights, dtype=float)
+    su, suu, suv, sus, svs, ss = (w @ np.concatenate([u, u * u, u * v, u * s, v * s, s]).T).reshape(k, 6, d
+                                                                                                  ).transpose(1, 0, 2)
+    sv, svv, count = (w @ np.stack([v, v * v, np.ones(n)], axis=1)).T[:, :, None]
+    A = np.empty((k, d, 3, 3))
+    A[..., 0, 0], A[..., 0, 1], A[..., 0, 2] = suu, suv, su
+    A[..., 1, 1], A[..., 1, 2], A[..., 2, 2] = svv, sv, count
+    A[..., 1, 0], A[..., 2, 0], A[..., 2, 1] = suv, su, sv
+    spread = np.maximum(suu + svv, 1e-300)
+    good = (count >= 3) & (np.abs(np.linalg.det(A)) > 1e-12 * np.maximum(count, 1) * spread * spread)
+    A[~good] = np.eye(3)
+    x = np.linalg.solve(A, np.stack([sus, svs, ss], axis=-1)[..., None])[..., 0]
+    cu, cv = x[..., 0] / 2, x[..., 1] / 2
+    with np.errstate(invalid="ignore"):
+        r = np.sqrt(x[..., 2] + cu * cu + cv * cv)
+    nan = np.where(good, 0.0, np.nan)
+    return cu + lm[:, 0] + nan, cv + zm + nan, r + nan
+
+
+def _subsets(xy, radius, seeds):
+    """0/1 masks (K, N) of subsets of the points xy (float64 (N, 2), m): all of them, then those
+    within `radius` of each of up to `seeds` seeds spread over them (farthest-point sampling, from
+    the point farthest from their mean, until every point is within radius / 2 of a seed)."""
+    masks = [np.ones(len(xy), bool)]
+    far = np.hypot(*(xy - xy.mean(axis=0)).T)
+    nearest = np.full(len(xy), np.inf)
+    for _ in range(seeds):
+        seed = int(np.argmax(far))
+        to_seed = np.hypot(xy[:, 0] - xy[seed, 0], xy[:, 1] - xy[seed, 1])
+        masks.append(to_seed <= radius)
+        nearest = np.minimum(nearest, to_seed)
+        far = nearest
+        if far.max() <= radius / 2:
+            break
+    return np.array(masks)
+
+
+def _distinct(members, score, count, max_overlap=0.5, scan=64):
+    """Positions of up to `count` of the best-scoring hypotheses (members: bool (H, N), each one's
+    points within r_eps; score (H,), < 3 never), each sharing at most max_overlap of the smaller
+    one's points with one taken before: the same can seen from several subsets counts once."""
+    taken = []
+    for h in np.argsort(-score, kind="stable")[:scan]:
+        if score[h] < 3 or len(taken) == count:
+            break
+        if taken and ((members[taken] & members[h]).sum(axis=1)
+                      > max_overlap * np.minimum(score[taken], score[h])).any():
+            continue
+        taken.append(int(h))
+    return taken
+
+
+def fit_lying_cylinders(points, r_eps, min_radius, max_radius, max_gap, directions=36, iterations=15,
+                        max_points=300, count=3, subset_radius=0.05, band=0.01, band_fraction=0.2, min_band_points=3,
+                        max_band_gap=1, sensor=None, min_own=0.6):
+    """Up to `count` distinct horizontal cylinders explaining points (float64 (N, 3), plane frame, m)
+    of a lying can and maybe other objects touching it: LyingFits, most inliers first.
+
+    Circles of about a radius within [min_radius, max_radius] (m) whose centre is about one radius
+    (to within a quarter radius and 2 max_gap, m) above the table: a Kasa circle of the points
+    projected along each of `directions` axis directions over 180 degrees, for all the points and
+    for the points within subset_radius (m, seen from above) of seeds spread over them (a can's
+    own points, with little of a neighbour's). Of those that hold at least min_own of their subset
+    within r_eps, the distinct ones with most points within r_eps are refined by Gauss-Newton on (theta, offset, zc, r) over the points within 2 r_eps; then only the
+    run of `band`-long bands along the axis that the circle explains (geometry.band_run: each with
+    at least band_fraction of the fullest band's points on it and no more inside: not a neighbour's
+    top) is kept (the fit's extent), refitted on it, and refitted again without the slabs of r_eps
+    at its ends. With the sensor ((x, y, z), plane frame, m) given, only the points on a cylinder's
+    half facing it count (_facing). At most max_points points (evenly subsampled) are used; rms and
+    n_inliers are theirs."""
+    if len(points) > max_points:
+        points = points[:: int(np.ceil(len(points) / max_points))]
+    if len(points) < 3:
+        return []
+    origin = points[:, :2].mean(axis=0)
+    q = points[:, :2] - origin
+    z = points[:, 2]
+    sq = None if sensor is None else (sensor[0] - origin[0], sensor[1] - origin[1], sensor[2])
+    theta = np.arange(directions) * np.pi / directions
+    lateral = -q[:, 0][None, :] * np.sin(theta)[:, None] + q[:, 1][None, :] * np.cos(theta)[:, None]
+    subsets = _subsets(q, subset_radius, seeds=8)
+    cl, cz, r = _kasa(lateral, z, subsets)  # (K, D) each
+    # Only circles of about a can's radius that about touch the table are scored and refined.
+    with np.errstate(invalid="ignore"):
+        ok = np.flatnonzero((np.isfinite(r) & (r >= 0.5 * min_radius) & (r <= 1.5 * max_radius)
+                             & (np.abs(cz - r) <= 0.25 * r + 2 * max_gap)).ravel())
+    k_ok, d_ok = np.divmod(ok, directions)
+    r_ok = r[k_ok, d_ok, None]
+    rho2 = (lateral[d_ok] - cl[k_ok, d_ok, None]) ** 2 + (z - cz[k_ok, d_ok, None]) ** 2
+    members = (rho2 <= (r_ok + r_eps) ** 2) & (rho2 >= np.maximum(r_ok - r_eps, 0.0) ** 2)
+    # A piece of a can lies on its circle: a circle that leaves most of its subset off is none.
+    own = (members & subsets[k_ok]).sum(axis=1) / np.maximum(subsets[k_ok].sum(axis=1), 1)
+    fits = []
+    for h in _distinct(members, np.where(own >= min_own, members.sum(axis=1), 0), count):
+        k, d = k_ok[h], d_ok[h]
+        # First on its subset (a piece of one can), then on the run of bands along the axis it explains.
+        fit = _refine(q, z, theta[d], cl[k, d], cz[k, d], r[k, d], r_eps, iterations, subsets[k], max_radius, max_gap,
+                      sq)
+        # No can's radius, or not on the table: the refits below would not make it one.
+        if fit is None or not min_radius <= fit[3] <= max_radius or abs(fit[2] - fit[3]) > max_gap:
+            continue
+        # Only the part of the axis the circle explains: not a neighbour's face beyond its end.
+        run = _explained(q, z, fit, r_eps, sq, band, band_fraction, min_band_points, max_band_gap)
+        if run is None:
+            continue
+        # Refitted on it, but without the slabs of r_eps at both ends of the cylinder's axial extent: the
+        # ends' discs lie inside the circle near its rim and pull it smaller.
+        axial, lateral = _on_axis(q, fit[0])
+        e_lo, e_hi = end_positions(axial, np.hypot(lateral - fit[1], z - fit[2]), fit[3], r_eps, run, band)
+        trimmed = (axial > e_lo + r_eps) & (axial < e_hi - r_eps)
+        fit = _refine(q, z, *fit[:4], r_eps, iterations, trimmed, max_radius, max_gap, sq) or fit
+        t, off, zc, rad, rms, n = fit
+        fits.append(LyingFit(direction=np.array([np.cos(t), np.sin(t)]), origin=origin, offset=off, zc=zc,
+                             radius=rad, rms=rms, n_inliers=n, extent=run))
+    return sorted(fits, key=lambda f: -f.n_inliers)
 
 
 def fit_lying_cylinder(points, r_eps, min_radius, max_radius, max_gap, directions=36, iterations=15, max_points=300):
-    """The horizontal cylinder best explaining points (float64 (N, 3), plane frame, m): a LyingFit,
-    or None when no direction gives a circle of about a radius within [min_radius, max_radius] (m)
-    whose centre is about one radius (to within a quarter radius and 2 max_gap, m) above the table.
-
-    Scans `directions` axis directions over 180 degrees (Kasa circle of the projected points,
-    scored by the points within r_eps of it), then refines the best three by Gauss-Newton on
-    (theta, offset, zc, r) over the points within 2 r_eps, and keeps the one with most inliers.
-    At most max_points points (evenly subsampled) are used; rms and n_inliers are theirs."""
-    points, origin, q = _centred(points, max_points)
-    if len(points) < 3:
-        return None
-    z = points[:, 2]
-    theta = np.arange(directions) * np.pi / directions
-    lateral = -q[:, 0][None, :] * np.sin(theta)[:, None] + q[:, 1][None, :] * np.cos(theta)[:, None]
-    cl, cz, r = _kasa(lateral, z)
-    dist = np.abs(np.hypot(lateral - cl[:, None], z[None, :] - cz[:, None]) - r[:, None])
-    # Only circles of about a can's radius that about touch the table are refined.
-    ok = (np.isfinite(r) & (r >= 0.5 * min_radius) & (r <= 1.5 * max_radius)
-          & (np.abs(cz - r) <= 0.25 * r + 2 * max_gap))
-    score = np.where(ok, (dist <= r_eps).sum(axis=1), -1)
-    best = None
-    for k in np.argsort(-score, kind="stable")[:2]:
-        if score[k] < 3:
-            break
-        fit = _refine(q, z, theta[k], cl[k], cz[k], r[k], r_eps, iterations, np.ones(len(z), bool), max_radius,
-                      max_gap)
-        if fit is not None and (best is None or fit[5] > best[5]):
-            best = fit
-    if best is None:
-        return None
-    return _without_ends(q, z, origin, best, r_eps, iterations, max_radius, max_gap)
+    """The horizontal cylinder best explaining points (fit_lying_cylinders' first), or None."""
+    fits = fit_lying_cylinders(points, r_eps, min_radius, max_radius, max_gap, directions, iterations, max_points)
+    return fits[0] if fits else None
 
 
 def refine_lying_cylinder(points, start, direction, radius, r_eps, max_radius, max_gap, iterations=15,
-                          max_points=300):
-    """A horizontal cylinder refined from a previous one (a LyingFit) or None, as fit_lying_cylinder
+                          max_points=300, sensor=None):
+    """A horizontal cylinder refined from a previous one (a LyingFit) or None, as fit_lying_cylinders
     but without its scan: points (float64 (N, 3), plane frame, m); start (3,): a point of the
     previous axis (its z the axis' height), direction (2,) or (3,): the axis seen from above (need not
-    be unit), radius (m). The refined direction keeps the previous one's sense."""
-    points, origin, q = _centred(points, max_points)
+    be unit), radius (m); sensor as fit_lying_cylinders'. The refined direction keeps the previous
+    one's sense. Refitted once more without the slabs of r_eps at the ends (their discs pull it small)."""
+    if len(points) > max_points:
+        points = points[:: int(np.ceil(len(points) / max_points))]
     if len(points) < 4:
         return None
+    origin = points[:, :2].mean(axis=0)
+    q, z = points[:, :2] - origin, points[:, 2]
+    sq = None if sensor is None else (sensor[0] - origin[0], sensor[1] - origin[1], sensor[2])
     theta = float(np.arctan2(direction[1], direction[0]))
     rel = np.asarray(start[:2], dtype=float) - origin
     offset = -rel[0] * np.sin(theta) + rel[1] * np.cos(theta)
-    best = _refine(q, points[:, 2], theta, offset, float(start[2]), float(radius), r_eps, iterations,
-                   np.ones(len(points), bool), max_radius, max_gap)
-    if best is None:
+    fit = _refine(q, z, theta, offset, float(start[2]), float(radius), r_eps, iterations, np.ones(len(points), bool),
+                  max_radius, max_gap, sq)
+    if fit is None:
         return None
-    return _without_ends(q, points[:, 2], origin, best, r_eps, iterations, max_radius, max_gap)
-
-
-def _centred(points, max_points):
-    """(points evenly subsampled to at most max_points, origin: their mean (x, y), q: their (x, y)
-    less the origin): the coordinates the fits work in."""
-    if len(points) > max_points:
-        points = points[:: int(np.ceil(len(points) / max_points))]
-    origin = points[:, :2].mean(axis=0) if len(points) else np.zeros(2)
-    return points, origin, points[:, :2] - origin
-
-
-def _without_ends(q, z, origin, best, r_eps, iterations, max_radius, max_gap):
-    """The LyingFit of a refined (theta, d, zc, r, rms, n), refined once more without the ends.
-
-    The ends' discs lie inside the circle near its rim and pull it smaller: refit without the
-    slabs of r_eps at both ends of the cylinder's axial extent."""
-    t = best[0]
-    axial = q[:, 0] * np.cos(t) + q[:, 1] * np.sin(t)
-    lo, hi = end_positions(axial, np.hypot(-q[:, 0] * np.sin(t) + q[:, 1] * np.cos(t) - best[1], z - best[2]),
-                           best[3], r_eps)
+    axial, lateral = _on_axis(q, fit[0])
+    lo, hi = end_positions(axial, np.hypot(lateral - fit[1], z - fit[2]), fit[3], r_eps)
     trimmed = (axial > lo + r_eps) & (axial < hi - r_eps)
-    best = _refine(q, z, *best[:4], r_eps, iterations, trimmed, max_radius, max_gap) or best
-    t, d, zc, rad, rms, n = best
-    return LyingFit(direction=np.array([np.cos(t), np.sin(t)]), origin=origin, offset=d, zc=zc, radius=rad,
+    t, off, zc, rad, rms, n = _refine(q, z, *fit[:4], r_eps, iterations, trimmed, max_radius, max_gap, sq) or fit
+    return LyingFit(direction=np.array([np.cos(t), np.sin(t)]), origin=origin, offset=off, zc=zc, radius=rad,
                     rms=rms, n_inliers=n)
 
 
-def end_positions(axial, rho, r, r_eps):
+def _on_axis(q, theta):
+    """(axial, lateral) coordinates (m, each (N,)) of points q (float64 (N, 2), m) along and across the
+    direction theta (rad)."""
+    c, s = np.cos(theta), np.sin(theta)
+    return q[:, 0] * c + q[:, 1] * s, -q[:, 0] * s + q[:, 1] * c
+
+
+def _explained(q, z, fit, r_eps, sensor, band, fraction, min_points, max_gap):
+    """The axial extent (lo, hi) (m) of the run of `band`-long bands along the axis of the cylinder fit
+    ((theta, offset, zc, r, ...)) that its circle explains (geometry.band_run), or None.
+
+    A band where at least as many points (and min_points) lie inside the cylinder or just outside it
+    (within 3 r_eps, on its half facing the sensor) as on it ends the run: another object's surface
+    is seen there (a box at its end, wider or lower than it, or as wide, its face then meeting the
+    circle along one stripe and going on beyond it)."""
+    t, d, zc, r = fit[:4]
+    axial, lateral = _on_axis(q, t)
+    dl, dz = lateral - d, z - zc
+    rho = np.hypot(dl, dz)
+    a0 = float(axial.min())
+    bands = ((axial - a0) / band).astype(np.int64)
+    nb = int(bands.max()) + 1
+    facing = _facing(dl, dz, t, d, zc, sensor)
+    band_on = np.bincount(bands[(np.abs(rho - r) <= r_eps) & facing], minlength=nb)
+    band_inside = np.bincount(bands[rho < r - r_eps], minlength=nb)
+    band_out = np.bincount(bands[facing & (rho > r + r_eps) & (rho <= r + 3 * r_eps)], minlength=nb)
+    other = band_inside + band_out
+    run = g.band_run(band_on, band_inside, fraction, min_points, max_gap,
+                     blocked=other >= np.maximum(min_points, band_on))
+    return None if run is None else (a0 + run[0] * band, a0 + (run[1] + 1) * band)
+
+
+def end_positions(axial, rho, r, r_eps, extent=(-np.inf, np.inf), band=0.0):
     """The axial coordinates (m) of a cylinder's two ends: the 0.5th and 99.5th percentiles of the
-    points within r + 2 r_eps of the axis (rho: their distances from it)."""
-    near = rho <= r + 2 * r_eps
+    points within r + 2 r_eps of the axis (rho: their distances from it) within the extent (lo, hi)
+    its circle explains, and of the points inside its circle (an end's disc) within `band` (m)
+    beyond it: the band holding an end's disc is no side band, but a neighbour's side touching
+    the end, seen beyond it, is not the can's."""
+    inside = (axial >= extent[0]) & (axial <= extent[1])
+    near = ((rho <= r + 2 * r_eps) & inside) | ((rho < r - r_eps) & (axial >= extent[0] - band)
+                                                 & (axial <= extent[1] + band))
     if near.sum() < 2:
         return float(axial.min()), float(axial.max())
     lo, hi = np.percentile(axial[near], [0.5, 99.5])
     return float(lo), float(hi)
 
 
-def _refine(q, z, theta, d, zc, r, r_eps, iterations, use, max_radius, max_gap):
-    """Gauss-Newton on (theta, d, zc, r) over the points of `use` (bool) within 2 r_eps of the current
-    cylinder: (theta, d, zc, r, rms, n_inliers) or None when fewer than 4 points stay near it, the
-    radius grows beyond 2 max_radius (m) or the axis leaves the height fit_lying_cylinder allows."""
+def _refine(q, z, theta, d, zc, r, r_eps, iterations, use, max_radius, max_gap, sensor=None, k=4.685, min_scale=5e-4):
+    """Iteratively reweighted Gauss-Newton on (theta, d, zc, r) over the points of `use` (bool) (and on
+    the cylinder's half facing the sensor, (x, y, z) relative to the origin of q, when given), with
+    Tukey's biweight: a point beyond the cut-off gets no weight, and the cut-off is k x the scale
+    (1.4826 x the median absolute residual of the points within r_eps, at least min_scale, m),
+    re-estimated every iteration, but at most 2 r_eps. So a neighbour's face touching the can,
+    millimetres off its circle, does not pull it. Returns (theta, d, zc, r, rms, n_inliers) or None
+    when fewer than 4 points stay near it, the radius grows beyond 2 max_radius (m) or the axis
+    leaves the height fit_lying_cylinder allows."""
     for _ in range(iterations):
-        c, s = np.cos(theta), np.sin(theta)
-        axial, lat = q[:, 0] * c + q[:, 1] * s, -q[:, 0] * s + q[:, 1] * c
+        axial, lat = _on_axis(q, theta)
         dl, dz = lat - d, z - zc
         rho = np.hypot(dl, dz)
-        near = (np.abs(rho - r) <= 2 * r_eps) & use
-        if near.sum() < 4:
+        residual = rho - r
+        mine = use & _facing(dl, dz, theta, d, zc, sensor)
+        within = np.abs(residual[mine])
+        within = within[within <= r_eps]
+        scale = 1.4826 * float(np.partition(within, len(within) // 2)[len(within) // 2]) if len(within) else np.inf
+        cutoff = min(2 * r_eps, k * max(scale, min_scale))
+        near = np.flatnonzero((np.abs(residual) < cutoff) & mine)
+        if len(near) < 4:
             return None
-        rho_n = np.maximum(rho[near], 1e-9)
+        dl, dz, res, rho_n = dl[near], dz[near], residual[near], np.maximum(rho[near], 1e-9)
         # d rho / d theta = (dl / rho) d lat / d theta, and d lat / d theta = -axial.
-        J = np.column_stack([-dl[near] * axial[near] / rho_n, -dl[near] / rho_n, -dz[near] / rho_n,
-                             -np.ones(near.sum())])
+        J = np.empty((len(near), 4))
+        J[:, 1], J[:, 2], J[:, 3] = -dl / rho_n, -dz / rho_n, -1.0
+        J[:, 0] = J[:, 1] * axial[near]
+        w = (1 - (res / cutoff) ** 2) ** 2
+        Jw = J.T * w
         try:
-            step = np.linalg.solve(J.T @ J, -(J.T @ (rho[near] - r)))
+            step = np.linalg.solve(Jw @ J, -(Jw @ res))
         except np.linalg.LinAlgError:
             return None
         theta, d, zc, r = theta + step[0], d + step[1], zc + step[2], r + step[3]
         if not 0 < r <= 2 * max_radius or abs(zc - r) > 0.25 * r + 2 * max_gap:
             return None
-        if np.abs(step[1:]).max() < 1e-5 and abs(step[0]) < 1e-4:
+        if np.abs(step[1:]).max() < 2e-5 and abs(step[0]) < 2e-4:
             break
-    c, s = np.cos(theta), np.sin(theta)
-    lat = -q[:, 0] * s + q[:, 1] * c
-    residual = np.hypot(lat - d, z - zc) - r
-    inl = (np.abs(residual) <= r_eps) & use
+    dl, dz = _on_axis(q, theta)[1] - d, z - zc
+    residual = np.hypot(dl, dz) - r
+    inl = (np.abs(residual) <= r_eps) & use & _facing(dl, dz, theta, d, zc, sensor)
     n = int(inl.sum())
     if n < 3 or not np.isfinite(r):
         return None
     return float(theta), float(d), float(zc), float(r), float(np.sqrt(np.mean(residual[inl] ** 2))), n
+
+
+def _facing(dl, dz, theta, d, zc, sensor):
+    """Whether points (dl, dz: lateral and vertical offsets from the axis (theta, d, zc), m) lie on the
+    half of the cylinder facing the sensor ((x, y, z) in the frame of the lateral coordinates; None:
+    all do): the only half of a can's side a sensor sees. Points near the circle on the far half
+    are another object's (the face of a box touching it behind, seen past it)."""
+    if sensor is None:
+        return np.ones(len(dl), bool)
+    fl, fz = _toward_sensor(theta, d, zc, sensor)
+    return dl * fl + dz * fz > 0.0
+
+
+def _toward_sensor(theta, d, zc, sensor):
+    """Unit vector (lateral, z) from the axis (theta, d, zc) toward the sensor across it ((x, y, z) in
+    the frame of the lateral coordinates, m; None: straight up)."""
+    if sensor is None:
+        return 0.0, 1.0
+    fl = -sensor[0] * np.sin(theta) + sensor[1] * np.cos(theta) - d
+    fz = sensor[2] - zc
+    norm = max(np.hypot(fl, fz), 1e-9)
+    return fl / norm, fz / norm
 
 
 @dataclass(frozen=True, eq=False)
@@ -211,25 +347,59 @@ class LyingCan:
     arc: float
 
 
-def lying_can(points, r_eps, sigma, config, search):
+def lying_cans(points, r_eps, sigma, config, search, sensor=None):
+    """Every lying can among points (float64 (N, 3), plane frame, m), which may hold other objects
+    touching them: (list of LyingCan, each one's masks over `points`; why the rest is no lying can).
+
+    Found one at a time (lying_can), each taking its side and ends out of the points for the next."""
+    free = np.ones(len(points), bool)
+    found, why = [], ""
+    while np.count_nonzero(free) >= config.min_fit_points and len(found) < search.max_rounds:
+        idx = np.flatnonzero(free)
+        can, why = lying_can(points[idx], r_eps, sigma, config, search, sensor)
+        if can is None:
+            break
+        inliers, mine = np.zeros(len(points), bool), np.zeros(len(points), bool)
+        inliers[idx[can.inliers]], mine[idx[can.mine]] = True, True
+        found.append(dataclasses.replace(can, inliers=inliers, mine=mine))
+        free &= ~mine
+    return found, why
+
+
+def lying_can(points, r_eps, sigma, config, search, sensor=None):
     """A lying can among points (float64 (N, 3), plane frame, m): (LyingCan, "") or (None, why not).
 
     r_eps: inlier distance (m); sigma: depth noise there (m); config: auto_finder.AutoConfig (radius
     range, inlier fraction, rms, shape error, arc, min_can_height as the least length); search:
-    can_search.CylinderSearchConfig (lying_gap, lying_directions, max_taper, taper_sigmas)."""
+    can_search.CylinderSearchConfig (lying_gap, lying_directions, fit_points, the bands along the
+    axis, max_taper, taper_sigmas); sensor: (x, y, z), plane frame (m), or None: only the points on
+    a cylinder's half facing it are its side (_facing). The distinct cylinders of fit_lying_cylinders are judged in turn
+    on their extent; the first that passes is the can, else the first one's reason is why not."""
     c, s = config, search
-    # A can on its side is at most one diameter high.
-    top = float(np.percentile(points[:, 2], 99))
-    if top > 2 * c.max_radius + s.lying_gap + 3 * sigma:
+    # A can on its side is at most one diameter high: the points above are another object's.
+    limit = 2 * c.max_radius + s.lying_gap + 3 * sigma
+    low = points[:, 2] <= limit
+    if np.count_nonzero(low) < c.min_fit_points:
+        top = float(np.percentile(points[:, 2], 99))
         return None, f"lying: {100 * top:.1f} cm high, more than a lying can's {200 * c.max_radius:.0f} cm"
-    fit = fit_lying_cylinder(points, r_eps, c.min_radius, c.max_radius, s.lying_gap + 3 * sigma, s.lying_directions,
-                             c.fit_iterations, s.fit_points)
-    return judge_lying(points, fit, r_eps, sigma, config, search)
+    fits = fit_lying_cylinders(points[low], r_eps, c.min_radius, c.max_radius, s.lying_gap + 3 * sigma,
+                               s.lying_directions, min(c.fit_iterations, 10), s.fit_points, band=s.band_height,
+                               band_fraction=s.band_fraction, min_band_points=s.min_band_points,
+                               max_band_gap=s.max_band_gap, sensor=sensor)
+    if not fits:
+        return None, "lying: no horizontal cylinder fits its points"
+    why = ""
+    for fit in fits:
+        can, reason = judge_lying(points, fit, r_eps, sigma, c, s, sensor)
+        if can is not None:
+            return can, ""
+        why = why or reason
+    return None, why
 
 
-def judge_lying(points, fit, r_eps, sigma, config, search):
-    """A horizontal cylinder fitted to points (a LyingFit, or None: none fitted) judged as a lying
-    can, as lying_can judges its own fit: (LyingCan, "") or (None, why not). Arguments as lying_can's."""
+def judge_lying(points, fit, r_eps, sigma, config, search, sensor=None):
+    """fit (a LyingFit, or None: none fitted) judged as a lying can on the points of its extent, as
+    lying_can judges its own fits: (LyingCan, "") or (None, why). Arguments as lying_can's."""
     c, s = config, search
     if fit is None:
         return None, "lying: no horizontal cylinder fits its points"
@@ -243,11 +413,15 @@ def judge_lying(points, fit, r_eps, sigma, config, search):
         return None, (f"lying: its axis is {1e3 * fit.zc:.0f} mm above the table, {1e3 * gap:+.0f} mm off its radius "
                       f"(max {1e3 * (s.lying_gap + 3 * sigma):.0f}; not a cylinder lying on the table)")
     axial, lateral, z, rho = fit.coordinates(points)
-    a_lo, a_hi = end_positions(axial, rho, r, r_eps)
+    a_lo, a_hi = end_positions(axial, rho, r, r_eps, fit.extent, s.band_height)
     # The side without the slabs of r_eps at the ends, where the ends' discs meet it.
     inner = (axial > a_lo + r_eps) & (axial < a_hi - r_eps)
-    side = (np.abs(rho - r) <= r_eps) & inner
-    body = (axial >= a_lo - r_eps) & (axial <= a_hi + r_eps) & (rho <= r + r_eps)
+    # Points near the circle on its far half are another object's (a box's face behind it).
+    sq = None if sensor is None else (sensor[0] - fit.origin[0], sensor[1] - fit.origin[1], sensor[2])
+    mine = _facing(lateral - fit.offset, z - fit.zc, np.arctan2(fit.direction[1], fit.direction[0]), fit.offset,
+                   fit.zc, sq) | (rho < r - r_eps)
+    side = (np.abs(rho - r) <= r_eps) & inner & mine
+    body = (axial >= a_lo - r_eps) & (axial <= a_hi + r_eps) & (rho <= r + r_eps) & mine
     n_side = int(side.sum())
     if n_side < c.min_fit_points:
         return None, f"lying: {n_side} points on a horizontal cylinder (min {c.min_fit_points})"
@@ -260,7 +434,7 @@ def judge_lying(points, fit, r_eps, sigma, config, search):
     if rms > max_rms:
         return None, f"lying: rms residual {1e3 * rms:.2f} mm > {1e3 * max_rms:.2f} mm"
     section = np.column_stack([lateral[side], z[side]])
-    shape = g.shape_error(section, fit.offset, fit.zc, r, c.shape_bins)
+    shape = g.shape_error(section, fit.offset, fit.zc, r, 2 * c.shape_bins)
     if shape > c.max_shape_error:
         return None, f"lying: shape error {1e3 * shape:.2f} mm > {1e3 * c.max_shape_error:.2f} mm (not round)"
     arc = g.arc_coverage(section, fit.offset, fit.zc)

@@ -282,11 +282,52 @@ def case_objects(case, rng):
                 Obj("prism", j(), j(), radius=float(rng.uniform(0.03, 0.05)), height=float(rng.uniform(0.08, 0.15)),
                     yaw=j(3)),
                 Obj("box", 0.15 + j(), j(), size=(0.07, 0.05, 0.12), yaw=float(rng.uniform(0.3, 1.2)))]
+    if case.startswith("lying can"):
+        return _lying_touching(case, rng, j)
     raise PerceptionError(f"unknown case {case!r}; one of {', '.join(CASES)}")
 
 
+def _lying_can(rng, x, y, yaw):
+    return Obj("lying_can", x, y, radius=float(rng.uniform(0.028, 0.04)), height=float(rng.uniform(0.1, 0.2)), yaw=yaw)
+
+
+def _lying_touching(case, rng, j):
+    """A lying can touching a standing box, an upright can or a second lying can (1 mm apart), on its
+    side (across the axis) or, for the box and the upright can, at its end. Whatever touches it stands
+    on its side or end away from the sensor (which looks along +y, turned up to 0.6 rad), behind it
+    or beside it as the sensor sees it, never in front, where it would hide it."""
+    lying = _lying_can(rng, j(), j(), float(rng.uniform(0, np.pi)))
+    u = np.array([np.cos(lying.yaw), np.sin(lying.yaw)])
+    n = np.array([-u[1], u[0]]) * (1.0 if u[0] >= 0 else -1.0)  # across the axis, away from the sensor
+    at_end = case != "lying cans touching" and rng.random() < 0.4
+    # From the axis' middle to the contact, and the unit direction on from there: at its far end or
+    # its far side (a box at the near end would hide the can's side behind it).
+    out = (u if u[1] >= 0 else -u) if at_end else n
+    reach = lying.height / 2 if at_end else lying.radius
+    along = 0.0 if at_end else float(rng.uniform(-0.3, 0.3)) * lying.height
+    contact = np.array([lying.x, lying.y]) + along * u + reach * out
+    if case == "lying can touching box":
+        deep, wide = float(rng.uniform(0.04, 0.1)), float(rng.uniform(0.06, 0.14))
+        c = contact + (deep / 2 + 0.001) * out
+        yaw = float(np.arctan2(out[1], out[0]))
+        return [lying, Obj("box", float(c[0]), float(c[1]), size=(deep, wide, float(rng.uniform(0.04, 0.16))),
+                           yaw=yaw)]
+    if case == "lying can touching can":
+        can = _can(rng, 0.0, 0.0)
+        c = contact + (can.radius + 0.001) * out
+        can.x, can.y = float(c[0]), float(c[1])
+        return [lying, can]
+    other = _lying_can(rng, 0.0, 0.0, lying.yaw)
+    # Both on the table, their axes 2 sqrt(r r') apart across (r + r' apart in the plane through both).
+    c = (np.array([lying.x, lying.y]) + (2 * np.sqrt(lying.radius * other.radius) + 0.001) * n
+         + float(rng.uniform(-0.3, 0.3)) * lying.height * u)
+    other.x, other.y = float(c[0]), float(c[1])
+    return [lying, other]
+
+
 CASES = ("cup on can", "can on can", "cans touching", "can touching box", "box hides base", "can on tin",
-         "can on box", "lying can", "mug and bowl", "boxes and prisms")
+         "can on box", "lying can", "mug and bowl", "boxes and prisms", "lying can touching box",
+         "lying can touching can", "lying cans touching")
 
 
 def case_spec(case, seed):

@@ -3,6 +3,7 @@ the objects that are no cans. Generated cases (example_pcl.scene_objects) are ch
 ground truth; the real mOSD scenes (../shared/data/osd) against their labels and
 bench/osd_objects.json, skipped when ../shared is absent.
 """
+import dataclasses
 import json
 import pathlib
 
@@ -11,6 +12,7 @@ import pytest
 
 from example_pcl import auto_finder as af
 from example_pcl import can_search as cs
+from example_pcl import geometry as g
 from example_pcl import scene as sc
 from example_pcl import scene_objects as so
 from example_pcl import transforms
@@ -63,6 +65,14 @@ def test_band_run_grows_from_the_fullest_side_band_over_small_gaps():
     inside = np.array([0, 0, 0, 0, 0, 0, 0, 0, 0, 40])  # the last band is a lid
     assert cs.band_run(on, inside, 0.2, 3, 1) == (1, 5)
     assert cs.band_run(np.zeros(4, int), np.zeros(4, int), 0.2, 3, 1) is None
+
+
+def test_band_run_stops_at_a_blocked_band_without_a_gap():
+    """A blocked band (another object seen there) ends the run; it is not skipped as a gap."""
+    on = np.array([9, 8, 9, 8, 1, 9, 8])
+    inside = np.zeros(7, int)
+    assert g.band_run(on, inside, 0.2, 3, 1) == (0, 6)
+    assert g.band_run(on, inside, 0.2, 3, 1, blocked=np.arange(7) == 4) == (0, 3)
 
 
 def test_config_rejects_nonsense():
@@ -217,6 +227,82 @@ def test_lying_boxes_and_tins_are_no_lying_cans(obj):
     assert result.cans == [], result.message
     assert result.rejected and all(r.reason for r in result.rejected)
     assert any("lying: " in r.reason for r in result.rejected), [r.reason for r in result.rejected]
+
+
+def lying_pose_error(can, obj, to_table):
+    """(middle error (m, 3-D), axis angle (rad), radius error (m), length error (m)) of a lying Can
+    against a lying_can Obj (table frame)."""
+    middle, axis = lying_truth(obj)
+    found_axis = transforms.apply(to_table, can.base_center + can.axis) - transforms.apply(to_table, can.base_center)
+    found_middle = transforms.apply(to_table, can.base_center + 0.5 * can.height * can.axis)
+    return (np.linalg.norm(found_middle - middle), np.arccos(min(1.0, abs(found_axis @ axis))),
+            can.radius - obj.radius, can.height - obj.height)
+
+
+@pytest.mark.parametrize("name, objects", [
+    ("box along its side", [Obj("lying_can", 0.0, 0.0, radius=0.034, height=0.15, yaw=0.3),
+                            Obj("box", -0.075 * np.sin(0.3), 0.075 * np.cos(0.3), size=(0.08, 0.12, 0.1),
+                                yaw=0.3 + np.pi / 2)]),
+    ("box at its end", [Obj("lying_can", 0.0, 0.0, radius=0.034, height=0.15, yaw=1.2),
+                        Obj("box", (0.075 + 0.041) * np.cos(1.2), (0.075 + 0.041) * np.sin(1.2), size=(0.08, 0.1, 0.12),
+                            yaw=1.2)]),
+    ("upright can beside it", [Obj("lying_can", 0.0, 0.0, radius=0.034, height=0.15, yaw=0.3),
+                               Obj("can", -0.071 * np.sin(0.3), 0.071 * np.cos(0.3), radius=0.036, height=0.12)]),
+    ("two lying cans side by side", [Obj("lying_can", 0.0, 0.0, radius=0.034, height=0.15, yaw=0.3),
+                                     Obj("lying_can", -0.067 * np.sin(0.3) + 0.02 * np.cos(0.3),
+                                         0.067 * np.cos(0.3) + 0.02 * np.sin(0.3), radius=0.032, height=0.12,
+                                         yaw=0.3)]),
+])
+def test_a_lying_can_touching_another_object_is_found_with_its_pose(name, objects):
+    """A lying can touching a box (along its side or at its end), an upright can or another lying can
+    (all 1 mm apart or less) is reported lying, its middle within 3 mm, its axis within 1 degree,
+    radius within 1 mm and length within 1 cm; the upright can is found too, and nothing else."""
+    _, result, to_table = search(objects)
+    lying_objects = [o for o in objects if o.kind == "lying_can"]
+    lying_cans = [c for c in result.cans if c.lying]
+    assert len(lying_cans) == len(lying_objects), (name, result.message, [r.reason for r in result.rejected])
+    for obj in lying_objects:
+        errors = min((lying_pose_error(c, obj, to_table) for c in lying_cans), key=lambda e: e[0])
+        assert errors[0] < 0.003 and errors[1] < np.radians(1), (name, errors)
+        assert abs(errors[2]) < 0.001 and abs(errors[3]) < 0.01, (name, errors)
+    assert_cans_at(dataclasses.replace(result, cans=[c for c in result.cans if not c.lying]), to_table, objects)
+
+
+@pytest.mark.parametrize("case", ["lying can touching box", "lying can touching can", "lying cans touching"])
+@pytest.mark.parametrize("seed", [0, 2, 4])
+def test_generated_lying_cans_touching_are_found(case, seed):
+    """On the generated cases of lying cans touching a box, an upright can or each other (development
+    seeds), every lying can is found (middle of its axis within 5 mm, axis within 1 degree, radius
+    within 1.5 mm), every upright can too, and nothing else."""
+    scene = sc.generate_scene(so.case_spec(case, seed))
+    to_table = transforms.invert(np.asarray(scene.truth["camera_from_table"]))
+    result = af.find_cans(scene.xyz)
+    truth = [t for t in scene.truth["objects"] if t["lying"]]
+    lying_cans = [c for c in result.cans if c.lying]
+    assert len(lying_cans) == len(truth), (result.message, [r.reason for r in result.rejected])
+    for t in truth:
+        obj = Obj("lying_can", *transforms.apply(to_table, np.add(t["base_center"], 0.5 * t["height"] * np.asarray(
+            t["axis"])))[:2], radius=t["radius"], height=t["height"], yaw=t["yaw"])
+        errors = min((lying_pose_error(c, obj, to_table) for c in lying_cans), key=lambda e: e[0])
+        assert errors[0] < 0.005 and errors[1] < np.radians(1) and abs(errors[2]) < 0.0015, errors
+    upright = [t for t in scene.truth["objects"] if t["is_can"]]
+    assert len(result.cans) == len(truth) + len(upright), result.message
+    for t in upright:
+        base = transforms.apply(to_table, t["base_center"])
+        assert min(np.hypot(*(table_xy(to_table, c)[:2] - base[:2])) for c in result.cans if not c.lying) < 0.002
+
+
+@pytest.mark.parametrize("objects", [
+    [Obj("box", 0.0, 0.0, size=(0.15, 0.07, 0.07), yaw=0.4), Obj("box", 0.0, 0.09, size=(0.12, 0.1, 0.14), yaw=0.4)],
+    [Obj("box", 0.0, 0.0, size=(0.16, 0.06, 0.05), yaw=2.0), Obj("can", 0.0, 0.07, radius=0.035, height=0.12)],
+    [Obj("lying_can", 0.0, 0.0, radius=0.1, height=0.07, yaw=0.5), Obj("box", 0.0, 0.17, size=(0.1, 0.1, 0.1))],
+])
+def test_lying_boxes_and_tins_touching_other_objects_are_no_lying_cans(objects):
+    """A box lying flat beside a standing box or an upright can, and a tin on its side beside a box, are
+    no lying cans (the upright can is still found)."""
+    _, result, to_table = search(objects)
+    assert not any(c.lying for c in result.cans), result.message
+    assert_cans_at(result, to_table, objects)
 
 
 @pytest.mark.parametrize("case", so.CASES)

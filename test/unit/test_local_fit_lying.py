@@ -154,13 +154,14 @@ def test_sequence_ids_stable_and_search_only_when_periodic(frames, tracked):
 
 def test_sequence_lying_track_velocity_is_the_cans_in_the_camera_frame(frames, tracked):
     """The lying track's velocity (of the middle of its axis, camera frame: the camera's drift, then
-    the can's roll too) is within 5 mm/s of the truth's (central difference of the true middles)
-    while only the camera moves (frames 2-7), and within 50 mm/s (the steady filter's lag as the
-    roll speeds up, to 0.1 m/s in 0.1 s) from frame 2 on."""
+    the can's roll too) is within 10 mm/s of the truth's (central difference of the true middles)
+    while only the camera moves (frames 2-7: the fits' frame-to-frame noise of about 0.2 mm is 6 mm/s
+    at 30 Hz while the filter settles), and within 50 mm/s (the steady filter's lag as the roll speeds
+    up, to 0.1 m/s in 0.1 s) from frame 2 on."""
     _, updates = tracked
     rate = lying_spec().rate
     for k in range(2, len(frames) - 1):
         track = next(t for t in updates[k].tracks if t.lying)
         truth = (middle(lying_truth(frames[k + 1])) - middle(lying_truth(frames[k - 1]))) * rate / 2
         error = np.linalg.norm(track.velocity - truth)
-        assert error < (0.005 if k <= 7 else 0.05), (k, track.velocity, truth)
+        assert error < (0.01 if k <= 7 else 0.05), (k, track.velocity, truth)
