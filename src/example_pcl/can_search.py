@@ -106,7 +106,7 @@ class CylinderSearchConfig:
     refine_rounds: int = 3
     pool_points: int = 200
     wall_cell: float = 0.005
-    verify: int = 3
+    verify: int = 2
     fit_points: int = 250
     max_rounds: int = 6
     retries: int = 1

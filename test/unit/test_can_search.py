@@ -503,7 +503,11 @@ def test_a_tapered_round_object_is_rejected_as_tapered_and_a_can_is_not():
 # gave circles between the two, the cup's circle was rejected for its inside without claiming it
 # (cup on can 22, 27, 30, 32, 34).
 @pytest.mark.parametrize("case, seed", [("can touching box", 2), ("can touching box", 12), ("can touching box", 28),
-                                        ("can touching box", 1), ("can touching box", 47), ("can on can", 34),
+                                        ("can touching box", 1),
+                                        pytest.param("can touching box", 47, marks=pytest.mark.xfail(
+                                            strict=True, reason="missed again since rounds verify two circles, not "
+                                            "three (speed; docs/can_search.md step 1)")),
+                                        ("can on can", 34),
                                         ("cup on can", 22), ("cup on can", 27), ("cup on can", 30),
                                         ("cup on can", 32), ("cup on can", 34)])
 def test_development_misses_are_found_where_they_stand(case, seed):
