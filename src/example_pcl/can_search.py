@@ -589,8 +589,9 @@ def _support(points, cx, cy, r, base, r_eps, sigma, ctx):
     level = ((z >= base - 0.025 - 3 * sigma) & (z <= base + 0.005) & (dist > r + r_eps)
              & (dist <= r + s.support_reach))
     beside = level & (ahead < 0.5 * r)
-    # Or something right under it, narrower than it (the can a wider cup stands on).
-    under = (dist <= r + r_eps) & (z >= base - 0.03) & (z <= base - 0.005)
+    # Or something right under it, narrower than it (the can a wider cup stands on); not the can's own
+    # side going on below the run, where an object in front hides most of it.
+    under = (dist < r - r_eps) & (z >= base - 0.03) & (z <= base - 0.005)
     n_beside = int(np.count_nonzero(beside))
     if n_beside >= s.min_band_points or np.count_nonzero(under) >= s.min_band_points:
         base_z = _percentile(z[level], 50) if n_beside >= s.min_band_points else base
