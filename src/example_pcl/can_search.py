@@ -120,7 +120,7 @@ class CylinderSearchConfig:
     occluder_reach: float = 0.3
     open_depth: float = 0.015
     open_window: float = 0.05
-    max_open_fraction: float = 0.15
+    max_open_fraction: float = 0.08
     handle_reach: float = 0.035
     max_handle_arc: float = 1.3
     min_handle_points: int = 8

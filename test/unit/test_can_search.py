@@ -503,7 +503,8 @@ def test_a_tapered_round_object_is_rejected_as_tapered_and_a_can_is_not():
 # gave circles between the two, the cup's circle was rejected for its inside without claiming it
 # (cup on can 22, 27, 30, 32, 34); a can's own side below its run (its lower part partly hidden by
 # a box or a lying can in front) was taken for a narrower object it stands on (box hides base 1,
-# lying can touching can 1).
+# lying can touching can 1); a cup on a can seen from low showed 12 % of its inside, under the open-top
+# rule's 15 % then, and was a can on the can (cup on can 418).
 @pytest.mark.parametrize("case, seed", [("can touching box", 2), ("can touching box", 12), ("can touching box", 28),
                                         ("can touching box", 1),
                                         pytest.param("can touching box", 47, marks=pytest.mark.xfail(
@@ -512,7 +513,7 @@ def test_a_tapered_round_object_is_rejected_as_tapered_and_a_can_is_not():
                                         ("can on can", 34),
                                         ("cup on can", 22), ("cup on can", 27), ("cup on can", 30),
                                         ("cup on can", 32), ("cup on can", 34), ("box hides base", 1),
-                                        ("lying can touching can", 1)])
+                                        ("lying can touching can", 1), ("cup on can", 418)])
 def test_development_misses_are_found_where_they_stand(case, seed):
     """Every can of these generated scenes is found within 3 mm of its axis, on its support (base
     within 1 cm, height within 1.5 cm of the truth), and no other upright can is reported."""
