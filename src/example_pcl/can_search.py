@@ -782,7 +782,7 @@ def search_cluster(points, ctx):
         # Nor the points just around an upright can that its own points leave (its side's noise, the
         # points a sensor interpolates between it and a lying can's end).
         near_upright = np.zeros(len(points), bool)
-        for can in cans[len(lying_cans):]:
+        for can in (c for c in cans if not c.lying):
             cx, cy = can.center_plane
             reach = can.radius + 2 * max(c.r_eps, c.r_eps_sigmas * _sigma(ctx, (cx, cy, 0.5 * can.height)))
             near_upright |= ((points[:, 0] - cx) ** 2 + (points[:, 1] - cy) ** 2 <= reach * reach) \

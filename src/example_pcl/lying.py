@@ -124,21 +124,16 @@ def fit_lying_cylinders(points, r_eps, min_radius, max_radius, max_gap, directio
     projected along each of `directions` axis directions over 180 degrees, for all the points and
     for the points within subset_radius (m, seen from above) of seeds spread over them (a can's
     own points, with little of a neighbour's). Of those that hold at least min_own of their subset
-    within r_eps, the distinct ones with most points within r_eps are refined by Gauss-Newton on (theta, offset, zc, r) over the points within 2 r_eps; then only the
-    run of `band`-long bands along the axis that the circle explains (geometry.band_run: each with
+    within r_eps, the distinct ones with most points within r_eps are refined by Gauss-Newton on
+    (theta, offset, zc, r) over the points within 2 r_eps; then only the run of `band`-long bands along the axis that the circle explains (geometry.band_run: each with
     at least band_fraction of the fullest band's points on it and no more inside: not a neighbour's
     top) is kept (the fit's extent), refitted on it, and refitted again without the slabs of r_eps
     at its ends. With the sensor ((x, y, z), plane frame, m) given, only the points on a cylinder's
     half facing it count (_facing). At most max_points points (evenly subsampled) are used; rms and
     n_inliers are theirs."""
-    if len(points) > max_points:
-        points = points[:: int(np.ceil(len(points) / max_points))]
+    points, origin, q, z, sq = _centred(points, max_points, sensor)
     if len(points) < 3:
         return []
-    origin = points[:, :2].mean(axis=0)
-    q = points[:, :2] - origin
-    z = points[:, 2]
-    sq = None if sensor is None else (sensor[0] - origin[0], sensor[1] - origin[1], sensor[2])
     theta = np.arange(directions) * np.pi / directions
     lateral = -q[:, 0][None, :] * np.sin(theta)[:, None] + q[:, 1][None, :] * np.cos(theta)[:, None]
     subsets = _subsets(q, subset_radius, seeds=8)
@@ -166,15 +161,7 @@ def fit_lying_cylinders(points, r_eps, min_radius, max_radius, max_gap, directio
         run = _explained(q, z, fit, r_eps, sq, band, band_fraction, min_band_points, max_band_gap)
         if run is None:
             continue
-        # Refitted on it, but without the slabs of r_eps at both ends of the cylinder's axial extent: the
-        # ends' discs lie inside the circle near its rim and pull it smaller.
-        axial, lateral = _on_axis(q, fit[0])
-        e_lo, e_hi = end_positions(axial, np.hypot(lateral - fit[1], z - fit[2]), fit[3], r_eps, run, band)
-        trimmed = (axial > e_lo + r_eps) & (axial < e_hi - r_eps)
-        fit = _refine(q, z, *fit[:4], r_eps, iterations, trimmed, max_radius, max_gap, sq) or fit
-        t, off, zc, rad, rms, n = fit
-        fits.append(LyingFit(direction=np.array([np.cos(t), np.sin(t)]), origin=origin, offset=off, zc=zc,
-                             radius=rad, rms=rms, n_inliers=n, extent=run))
+        fits.append(_without_ends(q, z, origin, fit, r_eps, iterations, max_radius, max_gap, sq, run, band))
     return sorted(fits, key=lambda f: -f.n_inliers)
 
 
@@ -191,13 +178,9 @@ def refine_lying_cylinder(points, start, direction, radius, r_eps, max_radius, m
     previous axis (its z the axis' height), direction (2,) or (3,): the axis seen from above (need not
     be unit), radius (m); sensor as fit_lying_cylinders'. The refined direction keeps the previous
     one's sense. Refitted once more without the slabs of r_eps at the ends (their discs pull it small)."""
-    if len(points) > max_points:
-        points = points[:: int(np.ceil(len(points) / max_points))]
+    points, origin, q, z, sq = _centred(points, max_points, sensor)
     if len(points) < 4:
         return None
-    origin = points[:, :2].mean(axis=0)
-    q, z = points[:, :2] - origin, points[:, 2]
-    sq = None if sensor is None else (sensor[0] - origin[0], sensor[1] - origin[1], sensor[2])
     theta = float(np.arctan2(direction[1], direction[0]))
     rel = np.asarray(start[:2], dtype=float) - origin
     offset = -rel[0] * np.sin(theta) + rel[1] * np.cos(theta)
@@ -205,12 +188,30 @@ def refine_lying_cylinder(points, start, direction, radius, r_eps, max_radius, m
                   max_radius, max_gap, sq)
     if fit is None:
         return None
+    return _without_ends(q, z, origin, fit, r_eps, iterations, max_radius, max_gap, sq)
+
+
+def _centred(points, max_points, sensor):
+    """(points evenly subsampled to at most max_points, origin: their mean (x, y), q: their (x, y) less
+    the origin, z, the sensor less the origin or None): the coordinates the fits work in."""
+    if len(points) > max_points:
+        points = points[:: int(np.ceil(len(points) / max_points))]
+    origin = points[:, :2].mean(axis=0) if len(points) else np.zeros(2)
+    sq = None if sensor is None else (sensor[0] - origin[0], sensor[1] - origin[1], sensor[2])
+    return points, origin, points[:, :2] - origin, points[:, 2], sq
+
+
+def _without_ends(q, z, origin, fit, r_eps, iterations, max_radius, max_gap, sensor, extent=(-np.inf, np.inf),
+                  band=0.0):
+    """The LyingFit of a refined (theta, d, zc, r, rms, n), refitted without the slabs of r_eps at both
+    ends of its axial extent (end_positions within `extent`): the ends' discs lie inside the circle
+    near its rim and pull it smaller."""
     axial, lateral = _on_axis(q, fit[0])
-    lo, hi = end_positions(axial, np.hypot(lateral - fit[1], z - fit[2]), fit[3], r_eps)
+    lo, hi = end_positions(axial, np.hypot(lateral - fit[1], z - fit[2]), fit[3], r_eps, extent, band)
     trimmed = (axial > lo + r_eps) & (axial < hi - r_eps)
-    t, off, zc, rad, rms, n = _refine(q, z, *fit[:4], r_eps, iterations, trimmed, max_radius, max_gap, sq) or fit
+    t, off, zc, rad, rms, n = _refine(q, z, *fit[:4], r_eps, iterations, trimmed, max_radius, max_gap, sensor) or fit
     return LyingFit(direction=np.array([np.cos(t), np.sin(t)]), origin=origin, offset=off, zc=zc, radius=rad,
-                    rms=rms, n_inliers=n)
+                    rms=rms, n_inliers=n, extent=extent)
 
 
 def _on_axis(q, theta):
