@@ -474,6 +474,7 @@ def verify(free, cx, cy, r, ctx, z0=None, again=True):
     if why:
         return None, why, claim(z_from=lowest)
     mine = free.idx[near[(dist <= r + r_eps) & (z >= lowest) & (z <= top + s.band_height)]]
+    height = _covered_top(cx, cy, r, r_eps, top, sigma, ctx) - base_z
     can = Can(T_sensor_from_can=g.can_pose(ctx.T_sensor_from_plane, cx, cy, base_z), radius=r,
               height=height, rms_error=rms, arc_coverage=arc, n_points=len(mine), n_fit_points=n_side,
               center_plane=np.array([cx, cy]), shape_error=shape, indices=mine, support=support,
@@ -620,6 +621,34 @@ def _support(points, cx, cy, r, base, r_eps, sigma, ctx):
         return "table", True, 0.0, ""
     return None, False, base, (f"its lowest side point is {100 * base:.1f} cm above the table with nothing "
                                "under it (floats)")
+
+
+def _covered_top(cx, cy, r, r_eps, top, sigma, ctx):
+    """The height (m) of the top of a can whose lid is covered by a wider object standing on it (a cup):
+    that object's base, as far above the highest point seen as its overhang can hide the side from the
+    sensor; else `top`, the highest point seen. The object's base must be seen around the axis, and
+    nothing may stand beside the can below its top (a taller can or box it touches)."""
+    s = ctx.search
+    st = ctx.standing
+    rel = st[:, :2] - (cx, cy)
+    dist = np.hypot(rel[:, 0], rel[:, 1])
+    z = st[:, 2]
+    ring = (dist > r + r_eps) & (dist <= r + s.support_reach) & (rel @ _toward_sensor(cx, cy, ctx) > 0)
+    beside = ring & (z >= top - 2 * s.band_height) & (z < top - 3 * sigma)
+    over = ring & (z >= top - 3 * sigma)
+    if np.count_nonzero(over) < s.min_band_points or np.count_nonzero(beside) >= s.min_band_points:
+        return top
+    # Its lowest band's lowest points: a percentile of all of it would lie above its base.
+    base = _percentile(z[over], 2)
+    base = _percentile(z[over & (z <= base + s.band_height)], 5)
+    # A ray from the sensor past an overhang reaching support_reach beyond the side hides the side
+    # support_reach x tan(elevation) below the object's base, no more.
+    tan_elevation = (ctx.sensor[2] - top) / max(np.hypot(*(ctx.sensor[:2] - (cx, cy))) - r, 1e-3)
+    lowest = over & (z <= base + s.band_height)
+    if (base > top + s.support_reach * tan_elevation + 3 * sigma or np.count_nonzero(lowest) < s.min_band_points
+            or g.arc_coverage(st[lowest, :2], cx, cy) < ctx.config.min_arc):
+        return top
+    return max(top, base)
 
 
 def _in_front(cx, cy, r, z_low, z_high, ctx):
