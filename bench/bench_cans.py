@@ -13,7 +13,8 @@ upright report of a lying can), lying cans reported as lying (axis within 10 deg
 and the middle of the axis within the match distance horizontally: 15 mm generated, 20 mm real; with
 the median of both errors; a real lying can's truth is the middle of its labelled points' spans along
 and across their principal direction seen from above), median centre error (mm, horizontal,
-against the truth's axis) and time per frame (median / p90 ms, real scenes; each scene searched
+against the truth's axis), median top error (mm, generated upright cans: the found top's height
+against the truth's, where a gripper closes on a can from above) and time per frame (median / p90 ms, real scenes; each scene searched
 `--repeats` times, the two finders alternately). Prints a markdown table and writes it into
 docs/can_search.md between <!-- bench:cans --> markers.
 """
@@ -48,22 +49,25 @@ class Tally:
     def __init__(self):
         self.found = self.missed = self.false = self.lying = self.lying_total = 0
         self.errors, self.times, self.support_ok, self.base_ok = [], [], [], []
+        self.top_errors = []  # generated upright cans found: |found top - true top| (m)
         self.lying_errors, self.lying_angles = [], []
 
     def row(self, name, finder, timed):
         err = f"{1e3 * statistics.median(self.errors):.2f}" if self.errors else "-"
+        top = f"{1e3 * statistics.median(self.top_errors):.1f}" if self.top_errors else "-"
         t = (f"{1e3 * statistics.median(self.times):.1f} / {1e3 * np.percentile(self.times, 90):.1f}"
              if timed and self.times else "-")
         lying = f"{self.lying}/{self.lying_total}" if self.lying_total else "-"
         if self.lying_errors:
             lying += (f" ({1e3 * statistics.median(self.lying_errors):.1f} mm, "
                       f"{np.degrees(statistics.median(self.lying_angles)):.1f} deg)")
-        return [name, finder, self.found, self.missed, self.false, lying, err, t]
+        return [name, finder, self.found, self.missed, self.false, lying, err, top, t]
 
 
 def score(tally, found_cans, true_cans, true_lying, to_plane, match):
     """Matches found cans (sensor frame) with the truth (plane-frame dicts: center (x, y), radius,
-    support_height, base_seen; lying: center (x, y, z) the middle of its axis, axis (unit, horizontal))."""
+    support_height, base_seen, top (generated: the top's height, m); lying: center (x, y, z) the middle of its
+    axis, axis (unit, horizontal))."""
     used, used_lying = set(), set()
     for can in found_cans:
         base = transforms.apply(to_plane, can.base_center)
@@ -95,6 +99,8 @@ def score(tally, found_cans, true_cans, true_lying, to_plane, match):
             used.add(k)
             tally.found += 1
             tally.errors.append(errors[k])
+            if "top" in true_cans[k]:
+                tally.top_errors.append(abs(base[2] + can.height * axis[2] - true_cans[k]["top"]))
         else:
             tally.false += 1
     tally.missed += len(true_cans) - len(used)
@@ -111,7 +117,8 @@ def generated(seeds, tallies):
             for t in scene.truth["objects"]:
                 p = transforms.apply(to_plane, t["base_center"])
                 if t["is_can"]:
-                    cans.append({"center": p[:2], "radius": t["radius"], "support_height": p[2]})
+                    cans.append({"center": p[:2], "radius": t["radius"], "support_height": p[2],
+                                 "top": p[2] + t["height"]})
                 elif t["lying"]:
                     a = transforms.apply(to_plane, np.asarray(t["base_center"]) + t["height"] * np.asarray(t["axis"]))
                     lying.append({"center": 0.5 * (p + a), "axis": (a - p) / np.linalg.norm(a - p)})
@@ -195,13 +202,14 @@ def main(argv=None):
                 for a in ("found", "missed", "false", "lying", "lying_total"):
                     setattr(total, a, getattr(total, a) + getattr(t, a))
                 total.errors += t.errors
+                total.top_errors += t.top_errors
                 total.lying_errors += t.lying_errors
                 total.lying_angles += t.lying_angles
         tallies[("generated: all", finder)] = total
     rows = [t.row(case, finder, case.startswith("real")) for (case, finder), t in sorted(
         tallies.items(), key=lambda kv: (kv[0][0].startswith("real"), kv[0][0].endswith("all"), kv[0][0], kv[0][1]))]
     header = ["case", "finder", "found", "missed", "false", "lying reported lying", "median centre error (mm)",
-              "time per frame median / p90 (ms)"]
+              "median top error (mm)", "time per frame median / p90 (ms)"]
     ratio = ""
     if ("real: all", "can_search") in tallies:
         a, b = tallies[("real: all", "can_search")].times, tallies[("real: all", "issue 5 finder")].times
