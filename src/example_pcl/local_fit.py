@@ -7,16 +7,19 @@ sensor frame, metres, NaN holes):
 1. **Table.** The previous table plane is refined by least squares on every ``table_step``-th
    pixel within ``table_band`` of it (geometry.refine_plane); a plane that tilted more than
    ``max_table_tilt`` or moved more than ``max_table_shift`` is a different scene.
-2. **Cans.** Each can is refitted from the pixels of a window around its previous footprint
-   (its previous points' bounding box grown by ``roi_margin`` px) that lie, in the new plane
-   frame, within its previous radius plus ``region_margin`` of its previous axis and between
-   ``min_height`` and ``max_height`` above the table: Levenberg-Marquardt (geometry.fit_cylinder)
-   from the previous circle on the side points, then auto_finder's criterion on radius, inlier
-   fraction, rms residual, shape error and visible arc, plus a radius change of at most
-   ``max_radius_change``. A lying can (can_search's, on its side) is refitted from the pixels of
-   its window within its radius plus ``region_margin`` of its previous axis, between its ends
-   grown by ``region_margin``: Gauss-Newton on its horizontal axis and radius (lying.py) from the
-   previous cylinder, then lying.judge_lying's criterion and the same radius change.
+2. **Cans.** Each can is refitted from the pixels of a window around its previous footprint (its
+   previous points' bounding box grown by ``roi_margin`` px) that lie, in the new plane frame,
+   within its previous radius plus ``region_margin`` of its previous axis and between ``min_height``
+   and below its top (plus ``region_margin``; a can keeps the height the full search measured, whose
+   lid a cup on it may hide): Tukey's biweight (geometry.fit_circle_robust, as the search refits a
+   can touching something) from the previous circle on the side points, then auto_finder's criterion
+   on radius, inlier fraction (of the side points within the fitted disc, so a neighbour touching it
+   does not count), rms residual, shape error and visible arc (the search's ``min_hidden_arc`` for a
+   can it found partly hidden), plus a radius change of at most ``max_radius_change``. A lying can
+   (can_search's, on its side) is refitted from the pixels of its window within its radius plus
+   ``region_margin`` of its previous axis, between its ends grown by ``region_margin``: Gauss-Newton
+   on its horizontal axis and radius (lying.py) from the previous cylinder, then lying.judge_lying's
+   criterion and the same radius change.
 3. **Scene changed?** On a coarse grid (every ``change_step``-th pixel), the points standing on
    the table (as auto_finder counts support: above ``min_height`` plus 3.5 sigma of depth noise,
    below ``max_height``) that are in no can's region (a lying can's: along its axis) and were not
@@ -172,43 +175,64 @@ def _refit_can(pts, T_sensor_from_plane, T_plane_from_sensor, sensor_plane, can,
     dx, dy, z = window[:, 0] - center[0], window[:, 1] - center[1], window[:, 2]
     region = dx * dx + dy * dy <= (can.radius + c.region_margin) ** 2
     region &= z > low
-    region &= z <= a.max_height
+    # A can does not grow: what stands on it (a cup) or rises beside it (a taller can or box) above
+    # its top is not its side.
+    region &= z <= min(a.max_height, max(base, 0.0) + can.height + c.region_margin)
     flat = np.flatnonzero(region)
     if len(flat) < a.min_fit_points:
         raise PerceptionError(f"{len(flat)} point(s) where the can was (min {a.min_fit_points})")
     points = window[flat].astype(float)
     z = points[:, 2]
-    top = int(0.99 * (len(z) - 1))
-    height = float(np.partition(z, top)[top])  # the 99th percentile, as the full search takes it
     # The mean as a matrix-vector product: NumPy's mean over axis 0 of (N, 3) costs 4x more.
     offset = np.ones(len(points)) @ points / len(points) - sensor_plane
     sigma = a.noise_coefficient * float(offset @ offset)
+    r_eps = max(a.r_eps, a.r_eps_sigmas * sigma)
+    # The height is the search's: its lid may be hidden (a cup on it) or crowded (a narrower can on
+    # it, a neighbour within region_margin), which the search looks at and a refit does not.
+    height = max(base, 0.0) + can.height
     side = points[(z >= max(base, 0.0) + a.fit_bottom + 3 * sigma) & (z <= height - a.top_margin - 3 * sigma), :2]
     if len(side) < a.min_fit_points:
         raise PerceptionError(f"{len(side)} side point(s) where the can was (min {a.min_fit_points})")
     if len(side) > c.max_fit_points:
         side = side[:: int(np.ceil(len(side) / c.max_fit_points))]
-    r_eps = max(a.r_eps, a.r_eps_sigmas * sigma)
-    fit = g.fit_cylinder(side, center[:2], can.radius, r_eps, max_iterations=a.fit_iterations,
-                         tol=c.fit_tolerance, min_inliers=a.min_fit_points, max_shift=c.region_margin)
+    # Tukey's biweight from the previous circle, as the search refits a can touching something: a
+    # box face or a neighbour can within r_eps of the circle pulls least squares onto itself.
+    robust = a.cylinders
+    cx, cy, radius, scale = g.fit_circle_robust(side, center[:2], can.radius, r_eps, k=robust.robust_k,
+                                                min_scale=robust.robust_min_scale, max_iterations=a.fit_iterations,
+                                                tol=c.fit_tolerance, max_shift=c.region_margin)
+    if not a.min_radius <= radius <= a.max_radius or abs(radius - can.radius) > c.max_radius_change:
+        raise PerceptionError(f"radius {1e3 * radius:.1f} mm (was {1e3 * can.radius:.1f} mm)")
+    dist = np.hypot(side[:, 0] - cx, side[:, 1] - cy)
+    inliers = np.abs(dist - radius) <= min(r_eps, robust.robust_k * scale)
+    n_inliers = int(np.count_nonzero(inliers))
+    if n_inliers < a.min_fit_points:
+        raise PerceptionError(f"{n_inliers} side point(s) on the circle (min {a.min_fit_points})")
+    # Of the side points within the disc, as the full search counts them: a neighbour touching the
+    # can lies outside it.
+    in_disc = int(np.count_nonzero(dist <= radius + r_eps))
+    if n_inliers < a.min_inlier_fraction * in_disc:
+        raise PerceptionError(f"only {n_inliers} of the {in_disc} side points within its disc on the circle")
+    residual = dist[inliers] - radius
+    rms = float(np.sqrt(residual @ residual / n_inliers))
     max_rms = max(a.max_rms, a.max_rms_sigmas * sigma)
-    if not a.min_radius <= fit.radius <= a.max_radius or abs(fit.radius - can.radius) > c.max_radius_change:
-        raise PerceptionError(f"radius {1e3 * fit.radius:.1f} mm (was {1e3 * can.radius:.1f} mm)")
-    if fit.n_inliers < a.min_inlier_fraction * len(side):
-        raise PerceptionError(f"only {fit.n_inliers} of {len(side)} side points on the circle")
-    if fit.rms_error > max_rms:
-        raise PerceptionError(f"rms residual {1e3 * fit.rms_error:.2f} mm > {1e3 * max_rms:.2f} mm")
-    if fit.arc_coverage < a.min_arc:
-        raise PerceptionError(f"side seen over {fit.arc_coverage:.2f} rad < {a.min_arc:.2f} rad")
-    shape = af.shape_error(side[fit.inliers], fit.cx, fit.cy, fit.radius, a.shape_bins)
+    if rms > max_rms:
+        raise PerceptionError(f"rms residual {1e3 * rms:.2f} mm > {1e3 * max_rms:.2f} mm")
+    arc = g.arc_coverage(side[inliers], cx, cy)
+    # A can found with less of its side seen (the search saw an object in front of it) keeps the
+    # search's lower bound for that case.
+    min_arc = a.min_arc if can.arc_coverage >= a.min_arc else robust.min_hidden_arc
+    if arc < min_arc:
+        raise PerceptionError(f"side seen over {arc:.2f} rad < {min_arc:.2f} rad")
+    shape = af.shape_error(side[inliers], cx, cy, radius, a.shape_bins)
     if shape > a.max_shape_error:
         raise PerceptionError(f"shape error {1e3 * shape:.2f} mm > {1e3 * a.max_shape_error:.2f} mm (not round)")
-    T_can = g.can_pose(T_sensor_from_plane, fit.cx, fit.cy, base)
+    T_can = g.can_pose(T_sensor_from_plane, cx, cy, base)
     rows, cols = np.divmod(flat, c1 - c0)
     indices = (rows + r0) * pts.shape[1] + (cols + c0)
-    return Can(T_sensor_from_can=T_can, radius=fit.radius, height=height - base, rms_error=fit.rms_error,
-               arc_coverage=fit.arc_coverage, n_points=len(flat), n_fit_points=fit.n_inliers,
-               center_plane=fit.center, shape_error=shape, indices=indices, support=can.support,
+    return Can(T_sensor_from_can=T_can, radius=radius, height=can.height, rms_error=rms,
+               arc_coverage=arc, n_points=len(flat), n_fit_points=n_inliers,
+               center_plane=np.array([cx, cy]), shape_error=shape, indices=indices, support=can.support,
                base_seen=can.base_seen, support_height=base)
 
 
@@ -437,13 +461,18 @@ class LocalFinder:
         table, its cans and its scene-change mask. A can that the refits since that frame have
         followed (an upright can of the search whose base centre is within its radius of a
         refitted one, or a lying can whose axis' middle is) keeps its fresher fit, so a can moved
-        meanwhile is looked for where it is."""
+        meanwhile is looked for where it is; an upright one with the search's height (the refit
+        keeps the height it was given)."""
         cans = []
         for can in found.cans:
             here = footprint_center(can)
             near = [c for c in self._cans if c.lying == can.lying
                     and np.linalg.norm(footprint_center(c) - here) < can.radius]
-            cans.append(min(near, key=lambda c: np.linalg.norm(footprint_center(c) - here)) if near else can)
+            if not near:
+                cans.append(can)
+                continue
+            fresher = min(near, key=lambda c: np.linalg.norm(footprint_center(c) - here))
+            cans.append(fresher if can.lying else dataclasses.replace(fresher, height=can.height))
         self._take(dataclasses.replace(found, cans=cans))
 
     def _take(self, found):
