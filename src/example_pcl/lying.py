@@ -422,7 +422,9 @@ def judge_lying(points, fit, r_eps, sigma, config, search, sensor=None):
     mine = _facing(lateral - fit.offset, z - fit.zc, np.arctan2(fit.direction[1], fit.direction[0]), fit.offset,
                    fit.zc, sq) | (rho < r - r_eps)
     side = (np.abs(rho - r) <= r_eps) & inner & mine
-    body = (axial >= a_lo - r_eps) & (axial <= a_hi + r_eps) & (rho <= r + r_eps) & mine
+    # Its ends' discs to their rims, on either half: left behind, the rim of an end touching an upright
+    # can stuck out of that can like a mug's handle ("lying can touching can", development seed 29).
+    body = (axial >= a_lo - r_eps) & (axial <= a_hi + r_eps) & (rho <= r + r_eps) & (mine | ~inner)
     n_side = int(side.sum())
     if n_side < c.min_fit_points:
         return None, f"lying: {n_side} points on a horizontal cylinder (min {c.min_fit_points})"
