@@ -376,12 +376,8 @@ def verify(free, cx, cy, r, ctx, z0=None, again=True):
     while lo < hi and band_on[lo] > crowded and band_out[lo] >= 0.3 * band_on[lo]:
         lo += 1
     z_lo, z_hi = lo * s.band_height, (hi + 1) * s.band_height
-    # The top: the lid just above the run (99th percentile of the disc's points up to 2 bands above);
-    # the side ends top_margin (and 3 sigma) below it, so the lid's rim is no side point. Taken on the
-    # disc's outer ring when it holds points: a narrower can standing on the lid rises inside it.
-    lid = (dist <= r + r_eps) & (z >= z_lo) & (z < z_hi + 2 * s.band_height)
-    ring = lid & (dist >= 0.7 * r)
-    top = _percentile(z[ring if np.count_nonzero(ring) >= s.min_band_points else lid], 99)
+    # The side ends top_margin (and 3 sigma) below the lid, so the lid's rim is no side point.
+    top = _lid(dist, z, r, r_eps, z_lo, z_hi, s)
     z_end = min(z_hi, top - c.top_margin - 3 * sigma)
     side = on & (z >= z_lo) & (z < z_end)
     n_side = int(np.count_nonzero(side))
@@ -423,6 +419,10 @@ def verify(free, cx, cy, r, ctx, z0=None, again=True):
     pts = free.points[near]
     x, y, z = pts[:, 0], pts[:, 1], pts[:, 2]
     dist = np.hypot(x - cx, y - cy)
+    # The lid again about the fitted circle: a box touching the side lay inside the hypothesis' wider
+    # one. The lower of the two: points that do not belong (a box, a can on the lid) only raise it.
+    top = min(top, _lid(dist, z, r, r_eps, z_lo, z_hi, s))
+    z_end = min(z_hi, top - c.top_margin - 3 * sigma)
     in_run = (z >= z_lo) & (z < z_end)
     facing_run = _facing(x, y, cx, cy, r, ctx) & in_run
     # The robust fit's outliers are another surface's points, not the can's side.
@@ -479,6 +479,19 @@ def verify(free, cx, cy, r, ctx, z0=None, again=True):
               center_plane=np.array([cx, cy]), shape_error=shape, indices=mine, support=support,
               base_seen=base_seen, support_height=float(base_z))
     return can, None, None
+
+
+def _lid(dist, z, r, r_eps, z_lo, z_hi, s):
+    """The height of the lid (m) over the run of bands z_lo..z_hi (m) of a circle of radius r: the 99th
+    percentile of the heights z of the points within the disc (dist: from the axis, m) up to 2 bands
+    above the run. Taken on the disc's outer ring when it holds points: a narrower can standing on the
+    lid rises inside it. Above the run, only points within the circle by r_eps / 2: a taller box or
+    can touching the side lies just outside it, within r_eps, and made the lid its height (the lid was
+    then "deep inside" the rim: a cup; "can touching box", development seeds 57 and 97)."""
+    lid = ((dist <= r + r_eps) & (z >= z_lo) & (z < z_hi + 2 * s.band_height)
+           & ((z < z_hi) | (dist <= r - 0.5 * r_eps)))
+    ring = lid & (dist >= 0.7 * r)
+    return _percentile(z[ring if np.count_nonzero(ring) >= s.min_band_points else lid], 99)
 
 
 def _claim_round(xy, cx, cy, r, claim, config):
