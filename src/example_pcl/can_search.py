@@ -8,9 +8,11 @@ and measured figures are in docs/can_search.md; in short, per cluster and round:
 1. **Hypotheses.** Circles through triplets of side points seen from above (RANSAC: each triplet
    an anchor and two points within the diameter of a can of a radius drawn per anchor), radius
    within [min_radius, max_radius], from a pool drawn with weights that favour walls (a side piles
-   many points into one ``wall_cell`` square seen from above, a lid one layer). The ones with most
-   pool points within r_eps on their half facing the sensor are verified, best first, each sharing
-   at most half its points with one taken before (circles through one box face count once).
+   many points into one ``wall_cell`` square seen from above, a lid one layer), but none on a box's
+   flat faces (long straight runs seen from above). The ones with most pool points within r_eps on
+   their half facing the sensor (less those inside the circle at its side's heights) are verified,
+   best first, each sharing at most half its points with one taken before (circles through one box
+   face count once).
 2. **Grow along the axis.** The points are split into height bands (``band_height``); starting
    from the band where the circle holds most points, the run of bands grows down and up while
    each band still has points on the circle (at least ``band_fraction`` of the start band's) and
@@ -67,7 +69,9 @@ class CylinderSearchConfig:
     grid_step (px): the search sees every grid_step-th pixel in each direction; hypotheses:
     triplets drawn per round, each from one horizontal slice hypothesis_slice (m) high (one object);
     pool_points: at most this many points score them, drawn with weights that favour walls (points
-    per wall_cell x wall_cell square seen from above); verify: the best so many distinct hypotheses
+    per wall_cell x wall_cell square seen from above); face_span, face_points: pool points on a straight
+    run (seen from above) at least face_span (m) long, of at least face_points points, are a flat face
+    (a box's) and anchor no triplet (flat_faces); verify: the best so many distinct hypotheses
     are verified per round, each first refined by refine_rounds linear fits in its slice;
     fit_points: at most this many side points (evenly subsampled) go into the Levenberg-Marquardt
     fit; max_rounds: per cluster. retries,
@@ -106,6 +110,8 @@ class CylinderSearchConfig:
     refine_rounds: int = 3
     pool_points: int = 200
     wall_cell: float = 0.005
+    face_span: float = 0.06
+    face_points: int = 12
     verify: int = 2
     fit_points: int = 250
     max_rounds: int = 6
@@ -210,6 +216,41 @@ def circle_hypotheses(xy, z, n, rng, min_radius, max_radius, slice_height, partn
     return cx[keep], cy[keep], r[keep], ((level[anchors[ok]] + 0.5) * slice_height)[keep]
 
 
+def flat_faces(xy, eps, min_span, min_points, rng, tries=32, max_faces=3, max_gap=0.02):
+    """Which of the points xy (float64 (M, 2), m, seen from above) lie on a flat vertical face (a box's
+    or prism's): within eps of a line, a run along it at least min_span (m) long with no gap over
+    max_gap (m), of at least min_points points. Up to max_faces lines, each the best of `tries`
+    drawn through two points. A can's side is no such run: a line stays within eps of a circle of
+    radius r over 2 sqrt(2 r eps) only (44 mm for r = 80 mm, eps = 3 mm)."""
+    face = np.zeros(len(xy), bool)
+    for _ in range(max_faces):
+        rest = np.flatnonzero(~face)
+        if len(rest) < max(min_points, 2):
+            break
+        a, b = rest[rng.integers(len(rest), size=(2, tries))]
+        d = xy[b] - xy[a]
+        norm = np.hypot(d[:, 0], d[:, 1])
+        ok = norm >= eps
+        if not ok.any():
+            break
+        a, d = a[ok], d[ok] / norm[ok, None]
+        rel = xy[None, rest, :] - xy[a, None, :]  # (T, R, 2)
+        off = np.abs(rel[:, :, 0] * d[:, None, 1] - rel[:, :, 1] * d[:, None, 0])
+        best = int(np.argmax((off <= eps).sum(axis=1)))
+        on = np.flatnonzero(off[best] <= eps)
+        along = rel[best, on] @ d[best]
+        order = np.argsort(along)
+        along = along[order]
+        # The longest run without a gap: two cans' fronts on one tangent line are two short runs.
+        breaks = np.flatnonzero(np.diff(along) > max_gap)
+        starts, ends = np.r_[0, breaks + 1], np.r_[breaks, len(along) - 1]
+        k = int(np.argmax(along[ends] - along[starts]))
+        if along[ends[k]] - along[starts[k]] < min_span or ends[k] - starts[k] + 1 < min_points:
+            break
+        face[rest[on[order[starts[k]:ends[k] + 1]]]] = True
+    return face
+
+
 def circle_members(xy, cx, cy, r, eps, sensor=None):
     """Which of the points xy (float64 (M, 2), m) lie within eps of each circle (cx, cy, r: (K,) each):
     (members (K, M) bool, residual (K, M): distance from the centre minus the radius, m). With the
@@ -225,13 +266,15 @@ def circle_members(xy, cx, cy, r, eps, sensor=None):
     return members, residual
 
 
-def best_circles(xy, cx, cy, r, eps, count, sensor=None, max_overlap=0.5):
-    """The `count` best circles, distinct: at most max_overlap of the smaller one's points within eps
+def best_circles(xy, cx, cy, r, eps, count, sensor=None, max_overlap=0.5, z=None, lid=0.01):
+    """The `count` best circles, distinct: at most max_overlap of the smaller one's points within eps / 2
     shared with one taken before (so circles through one box face count once, while a can beside it,
     or a cup of another radius on it, is another): their positions in cx, cy, r. Best: the largest
     sum of 1 - (residual / eps)^2 over the points of xy within eps (MSAC's truncated quadratic),
-    i.e. many points, close. With the sensor's (x, y) given, only points on the half of a circle
-    facing it count (an upright can's side seen; a face seen across a circle's far half is no can)."""
+    i.e. many points, close, less the points more than eps inside the circle at the heights of its
+    own points (z: the points' heights, m; None: not counted), below the top `lid` (m) of them. With
+    the sensor's (x, y) given, only points on the half of a circle facing it count (an upright
+    can's side seen; a face seen across a circle's far half is no can)."""
     if len(cx) == 0:
         return []
     members, residual = circle_members(xy, cx, cy, r, eps, sensor)
@@ -239,13 +282,23 @@ def best_circles(xy, cx, cy, r, eps, count, sensor=None, max_overlap=0.5):
     # Ranked by how close, not only how many: a wide circle tangent to a can's front, or through it
     # and a box's edge, holds as many points in its band as the can's own circle, but loosely.
     quality = np.where(members, 1.0 - (residual / eps) ** 2, 0.0).sum(axis=1)
+    if z is not None:
+        # Seen from above, a can's disc is empty at the heights of its side (its lid lies at the top):
+        # a wide circle tangent to a can holds the rest of the can inside, and outranked the can's own.
+        low = np.where(members, z[None, :], np.inf).min(axis=1)
+        high = np.where(members, z[None, :], -np.inf).max(axis=1) - lid
+        quality -= ((residual < -eps) & (z[None, :] >= low[:, None]) & (z[None, :] <= high[:, None])).sum(axis=1)
+    # Shared: within eps / 2 of both. A circle tangent to a can's front, wider than it, shares about half
+    # the can's points within eps but fewer within eps / 2; the can's own circles share most of them.
+    tight = members & (np.abs(residual) <= 0.5 * eps)
+    n_tight = tight.sum(axis=1)
     taken = []
     for k in np.argsort(-quality, kind="stable"):
         if score[k] < 3:
             break
         if taken:
-            shared = (members[taken] & members[k]).sum(axis=1)
-            if (shared > max_overlap * np.minimum(score[taken], score[k])).any():
+            shared = (tight[taken] & tight[k]).sum(axis=1)
+            if (shared > max_overlap * np.minimum(n_tight[taken], n_tight[k])).any():
                 continue
         taken.append(int(k))
         if len(taken) == count:
@@ -748,14 +801,18 @@ def search_cluster(points, ctx):
         r_eps = max(c.r_eps, c.r_eps_sigmas * sigma)
         z_pool = this_round.z[pool]
         progress, tried = False, np.zeros(len(pool), bool)
+        # No triplet from a box's or prism's flat faces: circles through their corners outscored a small
+        # can beside a big box and took the round's verifications.
+        face = flat_faces(xy, 0.5 * r_eps, s.face_span, s.face_points, ctx.rng)
         for attempt in range(1 + s.retries):
             # A retry draws its circles from the pool points the circles tried did not explain (a big
             # box's faces crowd out the triplets of a small can beside it).
             axy, az = xy[~tried], z_pool[~tried]
-            cx, cy, r, z0 = circle_hypotheses(axy, az, s.hypotheses, ctx.rng, c.min_radius, c.max_radius + r_eps,
-                                              s.hypothesis_slice)
+            drawn = ~face[~tried]
+            cx, cy, r, z0 = circle_hypotheses(axy[drawn], az[drawn], s.hypotheses, ctx.rng, c.min_radius,
+                                              c.max_radius + r_eps, s.hypothesis_slice)
             best = best_circles(axy, cx, cy, r, r_eps, s.verify if attempt == 0 else s.retry_verify,
-                                sensor=ctx.sensor)
+                                sensor=ctx.sensor, z=az, lid=s.band_height)
             if not best:
                 if attempt == 0:
                     last = last or ("no circle of a can's radius through its points", None)
