@@ -889,14 +889,18 @@ def _lying(points, rest, ctx):
 
 
 def _lying_result(found, rest, ctx):
-    """The Can of a lying can found (lying.LyingCan, masks over the points `rest` index)."""
+    """The Can of a lying can found (lying.LyingCan, masks over the points `rest` index). Its points are
+    its side and ends and the rims of its ends on the far half: left to the upright search, the rim of an
+    end touching an upright can stuck out of it like a mug's handle ("lying can touching can",
+    development seeds 29, 40)."""
     fit = found.fit
+    mine = found.mine if found.rims is None else found.mine | found.rims
     T_plane_from_can = lying.plane_from_can(found.start, found.direction)
     middle = found.start + 0.5 * found.length * found.direction
     can = Can(T_sensor_from_can=transforms.compose(ctx.T_sensor_from_plane, T_plane_from_can), radius=fit.radius,
-              height=found.length, rms_error=found.rms, arc_coverage=found.arc, n_points=int(found.mine.sum()),
+              height=found.length, rms_error=found.rms, arc_coverage=found.arc, n_points=int(mine.sum()),
               n_fit_points=int(found.inliers.sum()), center_plane=middle[:2].copy(), shape_error=found.shape_error,
-              indices=rest[found.mine], support="table", base_seen=True, support_height=0.0, lying=True)
+              indices=rest[mine], support="table", base_seen=True, support_height=0.0, lying=True)
     return can
 
 
