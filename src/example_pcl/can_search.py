@@ -398,6 +398,10 @@ def verify(free, cx, cy, r, ctx, z0=None, again=True):
             break
         kx, ky, kr = (float(v[0]) for v in g.fit_circles_algebraic(pts[close]))
         if not (abs(kr - r0) < 2 * r_eps and np.hypot(kx - x0, ky - y0) < 2 * r_eps):
+            if again and c.min_radius <= kr < r0 - 2 * r_eps:
+                # A wide circle tangent to a can's front: its close points are the can's, whose circle
+                # lies inside it. Verified from that circle instead.
+                return verify(free, kx, ky, kr, ctx, z0, again=False)
             break
         cx, cy, r = kx, ky, kr
         dist = np.hypot(x - cx, y - cy)
