@@ -234,11 +234,13 @@ def flat_faces(xy, eps, min_span, min_points, rng, tries=32, max_faces=3, max_ga
         if not ok.any():
             break
         a, d = a[ok], d[ok] / norm[ok, None]
-        rel = xy[None, rest, :] - xy[a, None, :]  # (T, R, 2)
-        off = np.abs(rel[:, :, 0] * d[:, None, 1] - rel[:, :, 1] * d[:, None, 0])
+        # Distance of every rest point from every line (T, R): |cross(d, p - p_a)|.
+        px, py = xy[rest, 0], xy[rest, 1]
+        off = np.abs(np.outer(d[:, 1], px) - np.outer(d[:, 0], py)
+                     - (d[:, 1] * xy[a, 0] - d[:, 0] * xy[a, 1])[:, None])
         best = int(np.argmax((off <= eps).sum(axis=1)))
         on = np.flatnonzero(off[best] <= eps)
-        along = rel[best, on] @ d[best]
+        along = (xy[rest[on]] - xy[a[best]]) @ d[best]
         order = np.argsort(along)
         along = along[order]
         # The longest run without a gap: two cans' fronts on one tangent line are two short runs.
