@@ -8,9 +8,11 @@ and measured figures are in docs/can_search.md; in short, per cluster and round:
 1. **Hypotheses.** Circles through triplets of side points seen from above (RANSAC: each triplet
    an anchor and two points within the diameter of a can of a radius drawn per anchor), radius
    within [min_radius, max_radius], from a pool drawn with weights that favour walls (a side piles
-   many points into one ``wall_cell`` square seen from above, a lid one layer). The ones with most
-   pool points within r_eps on their half facing the sensor are verified, best first, each sharing
-   at most half its points with one taken before (circles through one box face count once).
+   many points into one ``wall_cell`` square seen from above, a lid one layer), but none on a box's
+   flat faces (long straight runs seen from above). The ones with most pool points within r_eps on
+   their half facing the sensor (less those inside the circle at its side's heights) are verified,
+   best first, each sharing at most half its points with one taken before (circles through one box
+   face count once).
 2. **Grow along the axis.** The points are split into height bands (``band_height``); starting
    from the band where the circle holds most points, the run of bands grows down and up while
    each band still has points on the circle (at least ``band_fraction`` of the start band's) and
@@ -67,7 +69,9 @@ class CylinderSearchConfig:
     grid_step (px): the search sees every grid_step-th pixel in each direction; hypotheses:
     triplets drawn per round, each from one horizontal slice hypothesis_slice (m) high (one object);
     pool_points: at most this many points score them, drawn with weights that favour walls (points
-    per wall_cell x wall_cell square seen from above); verify: the best so many distinct hypotheses
+    per wall_cell x wall_cell square seen from above); face_span, face_points: pool points on a straight
+    run (seen from above) at least face_span (m) long, of at least face_points points, are a flat face
+    (a box's) and anchor no triplet (flat_faces); verify: the best so many distinct hypotheses
     are verified per round, each first refined by refine_rounds linear fits in its slice;
     fit_points: at most this many side points (evenly subsampled) go into the Levenberg-Marquardt
     fit; max_rounds: per cluster. retries,
@@ -106,6 +110,8 @@ class CylinderSearchConfig:
     refine_rounds: int = 3
     pool_points: int = 200
     wall_cell: float = 0.005
+    face_span: float = 0.06
+    face_points: int = 12
     verify: int = 2
     fit_points: int = 250
     max_rounds: int = 6
@@ -210,6 +216,43 @@ def circle_hypotheses(xy, z, n, rng, min_radius, max_radius, slice_height, partn
     return cx[keep], cy[keep], r[keep], ((level[anchors[ok]] + 0.5) * slice_height)[keep]
 
 
+def flat_faces(xy, eps, min_span, min_points, rng, tries=32, max_faces=3, max_gap=0.02):
+    """Which of the points xy (float64 (M, 2), m, seen from above) lie on a flat vertical face (a box's
+    or prism's): within eps of a line, a run along it at least min_span (m) long with no gap over
+    max_gap (m), of at least min_points points. Up to max_faces lines, each the best of `tries`
+    drawn through two points. A can's side is no such run: a line stays within eps of a circle of
+    radius r over 2 sqrt(2 r eps) only (44 mm for r = 80 mm, eps = 3 mm)."""
+    face = np.zeros(len(xy), bool)
+    for _ in range(max_faces):
+        rest = np.flatnonzero(~face)
+        if len(rest) < max(min_points, 2):
+            break
+        a, b = rest[rng.integers(len(rest), size=(2, tries))]
+        d = xy[b] - xy[a]
+        norm = np.hypot(d[:, 0], d[:, 1])
+        ok = norm >= eps
+        if not ok.any():
+            break
+        a, d = a[ok], d[ok] / norm[ok, None]
+        # Distance of every rest point from every line (T, R): |cross(d, p - p_a)|.
+        px, py = xy[rest, 0], xy[rest, 1]
+        off = np.abs(np.outer(d[:, 1], px) - np.outer(d[:, 0], py)
+                     - (d[:, 1] * xy[a, 0] - d[:, 0] * xy[a, 1])[:, None])
+        best = int(np.argmax((off <= eps).sum(axis=1)))
+        on = np.flatnonzero(off[best] <= eps)
+        along = (xy[rest[on]] - xy[a[best]]) @ d[best]
+        order = np.argsort(along)
+        along = along[order]
+        # The longest run without a gap: two cans' fronts on one tangent line are two short runs.
+        breaks = np.flatnonzero(np.diff(along) > max_gap)
+        starts, ends = np.r_[0, breaks + 1], np.r_[breaks, len(along) - 1]
+        k = int(np.argmax(along[ends] - along[starts]))
+        if along[ends[k]] - along[starts[k]] < min_span or ends[k] - starts[k] + 1 < min_points:
+            break
+        face[rest[on[order[starts[k]:ends[k] + 1]]]] = True
+    return face
+
+
 def circle_members(xy, cx, cy, r, eps, sensor=None):
     """Which of the points xy (float64 (M, 2), m) lie within eps of each circle (cx, cy, r: (K,) each):
     (members (K, M) bool, residual (K, M): distance from the centre minus the radius, m). With the
@@ -225,13 +268,15 @@ def circle_members(xy, cx, cy, r, eps, sensor=None):
     return members, residual
 
 
-def best_circles(xy, cx, cy, r, eps, count, sensor=None, max_overlap=0.5):
-    """The `count` best circles, distinct: at most max_overlap of the smaller one's points within eps
+def best_circles(xy, cx, cy, r, eps, count, sensor=None, max_overlap=0.5, z=None, lid=0.01):
+    """The `count` best circles, distinct: at most max_overlap of the smaller one's points within eps / 2
     shared with one taken before (so circles through one box face count once, while a can beside it,
     or a cup of another radius on it, is another): their positions in cx, cy, r. Best: the largest
     sum of 1 - (residual / eps)^2 over the points of xy within eps (MSAC's truncated quadratic),
-    i.e. many points, close. With the sensor's (x, y) given, only points on the half of a circle
-    facing it count (an upright can's side seen; a face seen across a circle's far half is no can)."""
+    i.e. many points, close, less the points more than eps inside the circle at the heights of its
+    own points (z: the points' heights, m; None: not counted), below the top `lid` (m) of them. With
+    the sensor's (x, y) given, only points on the half of a circle facing it count (an upright
+    can's side seen; a face seen across a circle's far half is no can)."""
     if len(cx) == 0:
         return []
     members, residual = circle_members(xy, cx, cy, r, eps, sensor)
@@ -239,13 +284,23 @@ def best_circles(xy, cx, cy, r, eps, count, sensor=None, max_overlap=0.5):
     # Ranked by how close, not only how many: a wide circle tangent to a can's front, or through it
     # and a box's edge, holds as many points in its band as the can's own circle, but loosely.
     quality = np.where(members, 1.0 - (residual / eps) ** 2, 0.0).sum(axis=1)
+    if z is not None:
+        # Seen from above, a can's disc is empty at the heights of its side (its lid lies at the top):
+        # a wide circle tangent to a can holds the rest of the can inside, and outranked the can's own.
+        low = np.where(members, z[None, :], np.inf).min(axis=1)
+        high = np.where(members, z[None, :], -np.inf).max(axis=1) - lid
+        quality -= ((residual < -eps) & (z[None, :] >= low[:, None]) & (z[None, :] <= high[:, None])).sum(axis=1)
+    # Shared: within eps / 2 of both. A circle tangent to a can's front, wider than it, shares about half
+    # the can's points within eps but fewer within eps / 2; the can's own circles share most of them.
+    tight = members & (np.abs(residual) <= 0.5 * eps)
+    n_tight = tight.sum(axis=1)
     taken = []
     for k in np.argsort(-quality, kind="stable"):
         if score[k] < 3:
             break
         if taken:
-            shared = (members[taken] & members[k]).sum(axis=1)
-            if (shared > max_overlap * np.minimum(score[taken], score[k])).any():
+            shared = (tight[taken] & tight[k]).sum(axis=1)
+            if (shared > max_overlap * np.minimum(n_tight[taken], n_tight[k])).any():
                 continue
         taken.append(int(k))
         if len(taken) == count:
@@ -345,6 +400,10 @@ def verify(free, cx, cy, r, ctx, z0=None, again=True):
             break
         kx, ky, kr = (float(v[0]) for v in g.fit_circles_algebraic(pts[close]))
         if not (abs(kr - r0) < 2 * r_eps and np.hypot(kx - x0, ky - y0) < 2 * r_eps):
+            if again and c.min_radius <= kr < r0 - 2 * r_eps:
+                # A wide circle tangent to a can's front: its close points are the can's, whose circle
+                # lies inside it. Verified from that circle instead.
+                return verify(free, kx, ky, kr, ctx, z0, again=False)
             break
         cx, cy, r = kx, ky, kr
         dist = np.hypot(x - cx, y - cy)
@@ -376,12 +435,8 @@ def verify(free, cx, cy, r, ctx, z0=None, again=True):
     while lo < hi and band_on[lo] > crowded and band_out[lo] >= 0.3 * band_on[lo]:
         lo += 1
     z_lo, z_hi = lo * s.band_height, (hi + 1) * s.band_height
-    # The top: the lid just above the run (99th percentile of the disc's points up to 2 bands above);
-    # the side ends top_margin (and 3 sigma) below it, so the lid's rim is no side point. Taken on the
-    # disc's outer ring when it holds points: a narrower can standing on the lid rises inside it.
-    lid = (dist <= r + r_eps) & (z >= z_lo) & (z < z_hi + 2 * s.band_height)
-    ring = lid & (dist >= 0.7 * r)
-    top = _percentile(z[ring if np.count_nonzero(ring) >= s.min_band_points else lid], 99)
+    # The side ends top_margin (and 3 sigma) below the lid, so the lid's rim is no side point.
+    top = _lid(dist, z, r, r_eps, z_lo, z_hi, s)
     z_end = min(z_hi, top - c.top_margin - 3 * sigma)
     side = on & (z >= z_lo) & (z < z_end)
     n_side = int(np.count_nonzero(side))
@@ -423,6 +478,10 @@ def verify(free, cx, cy, r, ctx, z0=None, again=True):
     pts = free.points[near]
     x, y, z = pts[:, 0], pts[:, 1], pts[:, 2]
     dist = np.hypot(x - cx, y - cy)
+    # The lid again about the fitted circle: a box touching the side lay inside the hypothesis' wider
+    # one. The lower of the two: points that do not belong (a box, a can on the lid) only raise it.
+    top = min(top, _lid(dist, z, r, r_eps, z_lo, z_hi, s))
+    z_end = min(z_hi, top - c.top_margin - 3 * sigma)
     in_run = (z >= z_lo) & (z < z_end)
     facing_run = _facing(x, y, cx, cy, r, ctx) & in_run
     # The robust fit's outliers are another surface's points, not the can's side.
@@ -480,6 +539,19 @@ def verify(free, cx, cy, r, ctx, z0=None, again=True):
               center_plane=np.array([cx, cy]), shape_error=shape, indices=mine, support=support,
               base_seen=base_seen, support_height=float(base_z))
     return can, None, None
+
+
+def _lid(dist, z, r, r_eps, z_lo, z_hi, s):
+    """The height of the lid (m) over the run of bands z_lo..z_hi (m) of a circle of radius r: the 99th
+    percentile of the heights z of the points within the disc (dist: from the axis, m) up to 2 bands
+    above the run. Taken on the disc's outer ring when it holds points: a narrower can standing on the
+    lid rises inside it. Above the run, only points within the circle by r_eps / 2: a taller box or
+    can touching the side lies just outside it, within r_eps, and made the lid its height (the lid was
+    then "deep inside" the rim: a cup; "can touching box", development seeds 57 and 97)."""
+    lid = ((dist <= r + r_eps) & (z >= z_lo) & (z < z_hi + 2 * s.band_height)
+           & ((z < z_hi) | (dist <= r - 0.5 * r_eps)))
+    ring = lid & (dist >= 0.7 * r)
+    return _percentile(z[ring if np.count_nonzero(ring) >= s.min_band_points else lid], 99)
 
 
 def _claim_round(xy, cx, cy, r, claim, config):
@@ -764,14 +836,18 @@ def search_cluster(points, ctx):
         r_eps = max(c.r_eps, c.r_eps_sigmas * sigma)
         z_pool = this_round.z[pool]
         progress, tried = False, np.zeros(len(pool), bool)
+        # No triplet from a box's or prism's flat faces: circles through their corners outscored a small
+        # can beside a big box and took the round's verifications.
+        face = flat_faces(xy, 0.5 * r_eps, s.face_span, s.face_points, ctx.rng)
         for attempt in range(1 + s.retries):
             # A retry draws its circles from the pool points the circles tried did not explain (a big
             # box's faces crowd out the triplets of a small can beside it).
             axy, az = xy[~tried], z_pool[~tried]
-            cx, cy, r, z0 = circle_hypotheses(axy, az, s.hypotheses, ctx.rng, c.min_radius, c.max_radius + r_eps,
-                                              s.hypothesis_slice)
+            drawn = ~face[~tried]
+            cx, cy, r, z0 = circle_hypotheses(axy[drawn], az[drawn], s.hypotheses, ctx.rng, c.min_radius,
+                                              c.max_radius + r_eps, s.hypothesis_slice)
             best = best_circles(axy, cx, cy, r, r_eps, s.verify if attempt == 0 else s.retry_verify,
-                                sensor=ctx.sensor)
+                                sensor=ctx.sensor, z=az, lid=s.band_height)
             if not best:
                 if attempt == 0:
                     last = last or ("no circle of a can's radius through its points", None)
@@ -848,14 +924,18 @@ def _lying(points, rest, ctx):
 
 
 def _lying_result(found, rest, ctx):
-    """The Can of a lying can found (lying.LyingCan, masks over the points `rest` index)."""
+    """The Can of a lying can found (lying.LyingCan, masks over the points `rest` index). Its points are
+    its side and ends and the rims of its ends on the far half: left to the upright search, the rim of an
+    end touching an upright can stuck out of it like a mug's handle ("lying can touching can",
+    development seeds 29, 40)."""
     fit = found.fit
+    mine = found.mine if found.rims is None else found.mine | found.rims
     T_plane_from_can = lying.plane_from_can(found.start, found.direction)
     middle = found.start + 0.5 * found.length * found.direction
     can = Can(T_sensor_from_can=transforms.compose(ctx.T_sensor_from_plane, T_plane_from_can), radius=fit.radius,
-              height=found.length, rms_error=found.rms, arc_coverage=found.arc, n_points=int(found.mine.sum()),
+              height=found.length, rms_error=found.rms, arc_coverage=found.arc, n_points=int(mine.sum()),
               n_fit_points=int(found.inliers.sum()), center_plane=middle[:2].copy(), shape_error=found.shape_error,
-              indices=rest[found.mine], support="table", base_seen=True, support_height=0.0, lying=True)
+              indices=rest[mine], support="table", base_seen=True, support_height=0.0, lying=True)
     return can
 
 

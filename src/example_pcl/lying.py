@@ -15,6 +15,7 @@ instead (:func:`refine_lying_cylinder`) and judges it the same way (:func:`judge
 """
 import dataclasses
 from dataclasses import dataclass
+from typing import Optional
 
 import numpy as np
 
@@ -335,7 +336,8 @@ class LyingCan:
     """A lying can found (plane frame, m): fit (LyingFit), start (float64 (3,): centre of one end),
     direction (float64 (3,): unit axis, horizontal, from that end), length, inliers (bool (N,) over
     the points: its side within r_eps), mine (bool (N,): its side and ends), rms (of the inliers'
-    radial residuals), shape_error, arc (rad: the side's span around the axis)."""
+    radial residuals), shape_error, arc (rad: the side's span around the axis), rims (bool (N,) or
+    None: the rims of its ends' discs on the half away from the sensor, not in mine)."""
 
     fit: LyingFit
     rms: float
@@ -346,6 +348,7 @@ class LyingCan:
     mine: np.ndarray
     shape_error: float
     arc: float
+    rims: Optional[np.ndarray] = None
 
 
 def lying_cans(points, r_eps, sigma, config, search, sensor=None):
@@ -360,9 +363,9 @@ def lying_cans(points, r_eps, sigma, config, search, sensor=None):
         can, why = lying_can(points[idx], r_eps, sigma, config, search, sensor)
         if can is None:
             break
-        inliers, mine = np.zeros(len(points), bool), np.zeros(len(points), bool)
-        inliers[idx[can.inliers]], mine[idx[can.mine]] = True, True
-        found.append(dataclasses.replace(can, inliers=inliers, mine=mine))
+        inliers, mine, rims = (np.zeros(len(points), bool) for _ in range(3))
+        inliers[idx[can.inliers]], mine[idx[can.mine]], rims[idx[can.rims]] = True, True, True
+        found.append(dataclasses.replace(can, inliers=inliers, mine=mine, rims=rims))
         free &= ~mine
     return found, why
 
@@ -423,6 +426,10 @@ def judge_lying(points, fit, r_eps, sigma, config, search, sensor=None):
                    fit.zc, sq) | (rho < r - r_eps)
     side = (np.abs(rho - r) <= r_eps) & inner & mine
     body = (axial >= a_lo - r_eps) & (axial <= a_hi + r_eps) & (rho <= r + r_eps) & mine
+    # Its ends' discs to their rims on the far half too: the upright search does not see them
+    # (can_search), the search for more lying cans does (a second part of a can split by an object
+    # across it, fitted on a subsample, came out another way without them).
+    rims = (axial >= a_lo - r_eps) & (axial <= a_hi + r_eps) & (rho <= r + r_eps) & ~inner & ~body
     n_side = int(side.sum())
     if n_side < c.min_fit_points:
         return None, f"lying: {n_side} points on a horizontal cylinder (min {c.min_fit_points})"
@@ -449,7 +456,7 @@ def judge_lying(points, fit, r_eps, sigma, config, search, sensor=None):
         return None, why
     ux, uy = fit.direction
     return LyingCan(fit=fit, rms=rms, start=fit.point_on_axis(a_lo), direction=np.array([ux, uy, 0.0]), length=length,
-                    inliers=side, mine=body, shape_error=shape, arc=arc), ""
+                    inliers=side, mine=body, shape_error=shape, arc=arc, rims=rims), ""
 
 
 def plane_from_can(start, direction):
