@@ -14,12 +14,12 @@ sensor frame, metres, NaN holes):
    lid a cup on it may hide): Tukey's biweight (geometry.fit_circle_robust, as the search refits a
    can touching something) from the previous circle on the side points, then auto_finder's criterion
    on radius, inlier fraction (of the side points within the fitted disc, so a neighbour touching it
-   does not count), rms residual, shape error and visible arc (the search's ``min_hidden_arc`` for a
-   can it found partly hidden), plus a radius change of at most ``max_radius_change``. A lying can
-   (can_search's, on its side) is refitted from the pixels of its window within its radius plus
-   ``region_margin`` of its previous axis, between its ends grown by ``region_margin``: Gauss-Newton
-   on its horizontal axis and radius (lying.py) from the previous cylinder, then lying.judge_lying's
-   criterion and the same radius change.
+   does not count), rms residual, shape error and visible arc (the search's ``min_hidden_arc`` or
+   ``min_occluded_arc`` for a can it found partly hidden), plus a radius change of at most
+   ``max_radius_change``. A lying can (can_search's, on its side) is refitted from the pixels of its
+   window within its radius plus ``region_margin`` of its previous axis, between its ends grown by
+   ``region_margin``: Gauss-Newton on its horizontal axis and radius (lying.py) from the previous
+   cylinder, then lying.judge_lying's criterion and the same radius change.
 3. **Scene changed?** On a coarse grid (every ``change_step``-th pixel), the points standing on
    the table (as auto_finder counts support: above ``min_height`` plus 3.5 sigma of depth noise,
    below ``max_height``) that are in no can's region (a lying can's: along its axis) and were not
@@ -219,9 +219,10 @@ def _refit_can(pts, T_sensor_from_plane, T_plane_from_sensor, sensor_plane, can,
     if rms > max_rms:
         raise PerceptionError(f"rms residual {1e3 * rms:.2f} mm > {1e3 * max_rms:.2f} mm")
     arc = g.arc_coverage(side[inliers], cx, cy)
-    # A can found with less of its side seen (the search saw an object in front of it) keeps the
-    # search's lower bound for that case.
-    min_arc = a.min_arc if can.arc_coverage >= a.min_arc else robust.min_hidden_arc
+    # A can found with less of its side seen (the search saw an object in front of it, or the rest
+    # of its near half hidden) keeps the search's lower bound for that case.
+    min_arc = (a.min_arc if can.arc_coverage >= a.min_arc else robust.min_hidden_arc
+               if can.arc_coverage >= robust.min_hidden_arc else robust.min_occluded_arc)
     if arc < min_arc:
         raise PerceptionError(f"side seen over {arc:.2f} rad < {min_arc:.2f} rad")
     shape = af.shape_error(side[inliers], cx, cy, radius, a.shape_bins)
