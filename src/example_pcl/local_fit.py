@@ -187,10 +187,11 @@ def _refit_can(pts, T_sensor_from_plane, T_plane_from_sensor, sensor_plane, can,
     offset = np.ones(len(points)) @ points / len(points) - sensor_plane
     sigma = a.noise_coefficient * float(offset @ offset)
     r_eps = max(a.r_eps, a.r_eps_sigmas * sigma)
-    # The height is the search's: its lid may be hidden (a cup on it) or crowded (a narrower can on
-    # it, a neighbour within region_margin), which the search looks at and a refit does not.
-    height = max(base, 0.0) + can.height
-    side = points[(z >= max(base, 0.0) + a.fit_bottom + 3 * sigma) & (z <= height - a.top_margin - 3 * sigma), :2]
+    # The top (m above the table) is the search's: its lid may be hidden (a cup on it) or crowded (a
+    # narrower can on it, a neighbour within region_margin), which the search looks at and a refit
+    # does not.
+    top = max(base, 0.0) + can.height
+    side = points[(z >= max(base, 0.0) + a.fit_bottom + 3 * sigma) & (z <= top - a.top_margin - 3 * sigma), :2]
     if len(side) < a.min_fit_points:
         raise PerceptionError(f"{len(side)} side point(s) where the can was (min {a.min_fit_points})")
     if len(side) > c.max_fit_points:
