@@ -529,9 +529,12 @@ def verify(free, cx, cy, r, ctx, z0=None, again=True):
     if why:
         return None, why, claim(z_from=lowest)
     height = top - base_z
-    if height < c.min_can_height or top - base < min(c.min_can_height, 0.6 * height):
+    # Its base hidden behind an object in front, the side below what is seen is hidden too: half
+    # min_can_height seen will do (a taller can behind another shows its side above the front one's lid).
+    seen = min(c.min_can_height if base_seen else 0.5 * c.min_can_height, 0.6 * height)
+    if height < c.min_can_height or top - base < seen:
         return None, (f"one circle explains only {100 * (top - base):.1f} cm of it (min "
-                      f"{100 * c.min_can_height:.1f} cm; a bowl's radius changes with height)"), claim(z_from=lowest)
+                      f"{100 * seen:.1f} cm; a bowl's radius changes with height)"), claim(z_from=lowest)
     why = (_open_top(pts[dist <= r + r_eps], cx, cy, r, r_eps, base, top, ctx)
            or _handle(pts, cx, cy, dist, r, r_eps, base_z, top, ctx))
     if why:
