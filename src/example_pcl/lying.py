@@ -229,7 +229,8 @@ def _explained(q, z, fit, r_eps, sensor, band, fraction, min_points, max_gap):
     A band where at least as many points (and min_points) lie inside the cylinder or just outside it
     (within 3 r_eps, on its half facing the sensor) as on it ends the run: another object's surface
     is seen there (a box at its end, wider or lower than it, or as wide, its face then meeting the
-    circle along one stripe and going on beyond it)."""
+    circle along one stripe and going on beyond it). The run then loses the bands at one end where
+    no can's side is seen (_without_flat_end: a box's top as high as the can)."""
     t, d, zc, r = fit[:4]
     axial, lateral = _on_axis(q, t)
     dl, dz = lateral - d, z - zc
@@ -244,7 +245,64 @@ def _explained(q, z, fit, r_eps, sensor, band, fraction, min_points, max_gap):
     other = band_inside + band_out
     run = g.band_run(band_on, band_inside, fraction, min_points, max_gap,
                      blocked=other >= np.maximum(min_points, band_on))
-    return None if run is None else (a0 + run[0] * band, a0 + (run[1] + 1) * band)
+    if run is None:
+        return None
+    near = facing & (np.abs(rho - r) <= 3 * r_eps)
+    # Up the flank toward the sensor, 30-65 degrees from the top: a box's corner there lies off
+    # the circle (a square's around it), a can's side on it.
+    fl = _toward_sensor(t, d, zc, sensor)[0]
+    toward = dl * fl > 0 if abs(fl) > 1e-6 else np.ones(len(dl), bool)
+    angle = np.arctan2(np.abs(dl), dz)
+    diagonal = toward & (angle >= np.radians(30)) & (angle <= np.radians(65))
+    run = _without_flat_end(bands[near], (rho - r)[near], diagonal[near], run, r_eps)
+    return a0 + run[0] * band, a0 + (run[1] + 1) * band
+
+
+def _without_flat_end(bands, residual, diagonal, run, r_eps, min_bands=2, min_count=10, ratio=3.0, floor=1 / 3,
+                      off=0.5, min_diagonal=3):
+    """The run (first, last band) without the bands at one end where no can's side is seen: a box's
+    top beyond the can's end, about as high as the can, meets the circle only along a stripe near
+    its top (its face toward the sensor, as wide as the can, near its side) and leaves it between.
+    bands, residual (m) and `diagonal` (bool: on the flank toward the sensor, 30-65 degrees from the
+    top) of the points within 3 r_eps of the circle on its facing half. Of the splits with at least
+    min_bands bands and min_count points beyond, the one with the largest ratio of the rms residuals
+    beyond and before it, if at least `ratio` and the rms beyond at least floor r_eps, where at least
+    `off` of the diagonal points beyond (and min_diagonal) lie more than r_eps outside the circle and
+    at most off / 2 of the rest's (a box's corner is off the circle there, a can's side on it: a
+    neighbour along part of the can's side scatters too, but leaves that flank on it). The bands
+    next to the split scattering no more than `ratio` x the rest's rms stay (the can's last band),
+    and at least min_bands must go (docs/can_search.md, "Lying cans")."""
+    first, last = run
+    keep = (bands >= first) & (bands <= last)
+    b, sq = bands[keep] - first, residual[keep] ** 2
+    diagonal, outside = diagonal[keep], residual[keep] > r_eps
+    count = np.bincount(b, minlength=last - first + 1)
+    band_rms = np.sqrt(np.bincount(b, sq, minlength=len(count)) / np.maximum(count, 1))
+    best, split = ratio, None
+    for c in range(min_bands, len(count) - min_bands + 1):
+        for beyond, at_end in ((b >= c, True), (b < c, False)):
+            n_beyond = int(beyond.sum())
+            if n_beyond < min_count or len(b) - n_beyond < min_count:
+                continue
+            rms_beyond, rms_rest = np.sqrt(sq[beyond].mean()), np.sqrt(sq[~beyond].mean())
+            if rms_beyond < floor * r_eps or rms_beyond <= best * rms_rest:
+                continue
+            d_beyond, d_rest = beyond & diagonal, ~beyond & diagonal
+            if (d_beyond.sum() < min_diagonal or (outside & d_beyond).sum() < off * d_beyond.sum()
+                    or (outside & d_rest).sum() > 0.5 * off * max(d_rest.sum(), 1)):
+                continue
+            best, split = rms_beyond / max(rms_rest, 1e-9), (c, at_end, rms_rest)
+    if split is None:
+        return run
+    c, at_end, rms_rest = split
+    scatters = (band_rms > ratio * rms_rest) & (count > 0)
+    gone = np.arange(c, len(count)) if at_end else np.arange(c - 1, -1, -1)
+    # Give back the bands next to the split that scatter no more than the can's side.
+    while len(gone) and not scatters[gone[0]]:
+        gone = gone[1:]
+    if np.count_nonzero(scatters[gone]) < min_bands:
+        return run
+    return (first, first + int(gone[0]) - 1) if at_end else (first + int(gone[0]) + 1, last)
 
 
 def end_positions(axial, rho, r, r_eps, extent=(-np.inf, np.inf), band=0.0):
