@@ -967,7 +967,7 @@ def _lying_result(found, rest, ctx):
     end touching an upright can stuck out of it like a mug's handle ("lying can touching can",
     development seeds 29, 40)."""
     fit = found.fit
-    mine = found.mine if found.rims is None else found.mine | found.rims
+    mine = found.mine | found.rims
     T_plane_from_can = lying.plane_from_can(found.start, found.direction)
     middle = found.start + 0.5 * found.length * found.direction
     can = Can(T_sensor_from_can=transforms.compose(ctx.T_sensor_from_plane, T_plane_from_can), radius=fit.radius,

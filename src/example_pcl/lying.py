@@ -15,7 +15,6 @@ instead (:func:`refine_lying_cylinder`) and judges it the same way (:func:`judge
 """
 import dataclasses
 from dataclasses import dataclass
-from typing import Optional
 
 import numpy as np
 
@@ -394,8 +393,8 @@ class LyingCan:
     """A lying can found (plane frame, m): fit (LyingFit), start (float64 (3,): centre of one end),
     direction (float64 (3,): unit axis, horizontal, from that end), length, inliers (bool (N,) over
     the points: its side within r_eps), mine (bool (N,): its side and ends), rms (of the inliers'
-    radial residuals), shape_error, arc (rad: the side's span around the axis), rims (bool (N,) or
-    None: the rims of its ends' discs on the half away from the sensor, not in mine)."""
+    radial residuals), shape_error, arc (rad: the side's span around the axis), rims (bool (N,): the
+    rims of its ends' discs on the half away from the sensor, not in mine)."""
 
     fit: LyingFit
     rms: float
@@ -406,7 +405,7 @@ class LyingCan:
     mine: np.ndarray
     shape_error: float
     arc: float
-    rims: Optional[np.ndarray] = None
+    rims: np.ndarray
 
 
 def lying_cans(points, r_eps, sigma, config, search, sensor=None):
