@@ -968,13 +968,12 @@ def _lying_result(found, rest, ctx):
     development seeds 29, 40)."""
     fit = found.fit
     mine = found.mine | found.rims
-    T_plane_from_can = lying.plane_from_can(found.start, found.direction)
     middle = found.start + 0.5 * found.length * found.direction
-    can = Can(T_sensor_from_can=transforms.compose(ctx.T_sensor_from_plane, T_plane_from_can), radius=fit.radius,
-              height=found.length, rms_error=found.rms, arc_coverage=found.arc, n_points=int(mine.sum()),
-              n_fit_points=int(found.inliers.sum()), center_plane=middle[:2].copy(), shape_error=found.shape_error,
-              indices=rest[mine], support="table", base_seen=True, support_height=0.0, lying=True)
-    return can
+    return Can(T_sensor_from_can=g.lying_can_pose(ctx.T_sensor_from_plane, found.start, found.direction),
+               radius=fit.radius, height=found.length, rms_error=found.rms, arc_coverage=found.arc,
+               n_points=int(mine.sum()), n_fit_points=int(found.inliers.sum()), center_plane=middle[:2].copy(),
+               shape_error=found.shape_error, indices=rest[mine], support="table", base_seen=True,
+               support_height=0.0, lying=True)
 
 
 def search(clusters, standing, T_sensor_from_plane, sensor_plane, config):

@@ -324,6 +324,17 @@ def can_pose(T_sensor_from_plane, cx, cy, z=0.0):
     return np.asarray(T_sensor_from_plane, dtype=float) @ shift
 
 
+def lying_can_pose(T_sensor_from_plane, start, direction):
+    """T_sensor_from_can (4x4 float64) of a can lying on its side: origin `start` (m, plane frame: the
+    centre of one end), z along `direction` (unit, horizontal, plane frame), x up from the table,
+    y = z x x."""
+    ux, uy = direction[0], direction[1]
+    T = np.eye(4)
+    T[:3, :3] = np.array([[0.0, uy, ux], [0.0, -ux, uy], [1.0, 0.0, 0.0]])
+    T[:3, 3] = start
+    return np.asarray(T_sensor_from_plane, dtype=float) @ T
+
+
 def _xy(xy):
     """xy as float64 (N, 2): the first two columns of an (N, 2) or (N, 3) plane-frame array."""
     xy = np.asarray(xy, dtype=float)

@@ -289,7 +289,7 @@ def _refit_lying(pts, T_sensor_from_plane, T_plane_from_sensor, sensor_plane, ca
     begin, direction = found.start, found.direction
     if direction[:2] @ u < 0:  # the same end as before is the can's origin, so its pose does not jump
         begin, direction = begin + found.length * direction, -direction
-    T_can = transforms.compose(T_sensor_from_plane, lying.plane_from_can(begin, direction))
+    T_can = g.lying_can_pose(T_sensor_from_plane, begin, direction)
     middle = begin + 0.5 * found.length * direction
     rows, cols = np.divmod(flat[found.mine], c1 - c0)
     indices = (rows + r0) * pts.shape[1] + (cols + c0)

@@ -516,16 +516,6 @@ def judge_lying(points, fit, r_eps, sigma, config, search, sensor=None):
                     inliers=side, mine=body, shape_error=shape, arc=arc, rims=rims), ""
 
 
-def plane_from_can(start, direction):
-    """T_plane_from_can (4x4 float64) of a lying can: origin `start` (m, plane frame: the centre of
-    one end), z along `direction` (unit, horizontal), x up from the table, y = z x x."""
-    ux, uy = direction[0], direction[1]
-    T = np.eye(4)
-    T[:3, :3] = np.array([[0.0, uy, ux], [0.0, -ux, uy], [1.0, 0.0, 0.0]])
-    T[:3, 3] = start
-    return T
-
-
 def _bulging(axial, rho, a_lo, length, sigma, s):
     """Why the radius is not the same along the axis (a bowl or a pot on its side, a sphere), or "":
     the side's median distance from the axis in its first, middle and last third differ by more than

@@ -470,6 +470,19 @@ def test_can_pose_origin_at_base_center():
     assert_allclose(pose @ [0, 0, 0, 1], T @ [0.1, -0.2, 0, 1])
 
 
+def test_lying_can_pose_axis_along_the_direction_and_x_up():
+    """lying_can_pose: a right-handed frame at `start` (plane frame), z along the horizontal direction,
+    x the table's normal."""
+    rng = np.random.default_rng(14)
+    T = random_rigid(rng)
+    u = np.array([np.cos(0.7), np.sin(0.7), 0.0])
+    pose = np.linalg.solve(T, g.lying_can_pose(T, (0.1, -0.2, 0.03), u))  # back in the plane frame
+    assert_allclose(pose[:3, 2], u, atol=1e-12)
+    assert_allclose(pose[:3, 0], [0, 0, 1], atol=1e-12)
+    assert np.linalg.det(pose[:3, :3]) == pytest.approx(1.0)
+    assert_allclose(pose[:3, 3], [0.1, -0.2, 0.03], atol=1e-12)
+
+
 def test_fit_center_exact_arc():
     """On an exact half circle the centre is found to 1e-9 m from 1 cm away, arc coverage pi."""
     xy = circle_points((0.2, -0.1), CAN_R, 0.0, np.pi, 60)
