@@ -8,6 +8,8 @@ from typing import Optional
 
 import numpy as np
 
+from example_pcl import geometry
+
 
 @dataclass(frozen=True, eq=False)
 class Can:
@@ -58,6 +60,11 @@ class Can:
     def axis(self):
         """Unit axis of the can (up from the table when upright), sensor frame: float64 (3,)."""
         return self.T_sensor_from_can[:3, 2].copy()
+
+    @property
+    def footprint_center(self):
+        """The middle of its footprint, sensor frame (m): the base centre, or a lying can's axis' middle."""
+        return geometry.footprint_center(self.base_center, self.axis, self.height, self.lying)
 
     def to_dict(self):
         """JSON-able dict of everything but the indices (base_center and axis included)."""

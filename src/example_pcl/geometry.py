@@ -324,6 +324,12 @@ def can_pose(T_sensor_from_plane, cx, cy, z=0.0):
     return np.asarray(T_sensor_from_plane, dtype=float) @ shift
 
 
+def footprint_center(base_center, axis, height, lying):
+    """The middle of a can's footprint (m, the frame of base_center and axis): its base centre when
+    upright, the middle of its axis when lying (which does not depend on the end its pose starts from)."""
+    return np.asarray(base_center, dtype=float) + (0.5 * height * np.asarray(axis, dtype=float) if lying else 0.0)
+
+
 def lying_can_pose(T_sensor_from_plane, start, direction):
     """T_sensor_from_can (4x4 float64) of a can lying on its side: origin `start` (m, plane frame: the
     centre of one end), z along `direction` (unit, horizontal, plane frame), x up from the table,

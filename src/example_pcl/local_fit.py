@@ -349,14 +349,6 @@ def new_standing_points(standing, grid, T_plane_from_sensor, cans, known, config
     return int(np.count_nonzero(new))
 
 
-def footprint_center(can):
-    """The middle of a can's footprint, sensor frame (m): the base centre of an upright can, the
-    middle of a lying can's axis (which does not depend on which end its pose starts from)."""
-    if can.lying:
-        return can.base_center + 0.5 * can.height * can.axis
-    return can.base_center
-
-
 # --- frame after frame ----------------------------------------------------------------------------
 
 
@@ -467,13 +459,13 @@ class LocalFinder:
         keeps the height it was given)."""
         cans = []
         for can in found.cans:
-            here = footprint_center(can)
+            here = can.footprint_center
             near = [c for c in self._cans if c.lying == can.lying
-                    and np.linalg.norm(footprint_center(c) - here) < can.radius]
+                    and np.linalg.norm(c.footprint_center - here) < can.radius]
             if not near:
                 cans.append(can)
                 continue
-            fresher = min(near, key=lambda c: np.linalg.norm(footprint_center(c) - here))
+            fresher = min(near, key=lambda c: np.linalg.norm(c.footprint_center - here))
             cans.append(fresher if can.lying else dataclasses.replace(fresher, height=can.height))
         self._take(dataclasses.replace(found, cans=cans))
 

@@ -127,7 +127,7 @@ class Track:
     @property
     def center(self):
         """The point the filters track (m): the base centre, or the middle of a lying can's axis."""
-        return self.base_center + 0.5 * self.height * self.axis if self.lying else self.base_center.copy()
+        return g.footprint_center(self.base_center, self.axis, self.height, self.lying)
 
     @property
     def pose(self):
@@ -374,5 +374,5 @@ def _measurement(detection, index):
         raise PerceptionError(f"detection {index} has a non-finite centre or axis, or a non-positive size")
     axis = axis / norm
     lying = bool(getattr(detection, "lying", False))
-    middle = center + 0.5 * height * axis if lying else center
+    middle = g.footprint_center(center, axis, height, lying)
     return {"base": center, "center": middle, "axis": axis, "radius": radius, "height": height, "lying": lying}

@@ -483,6 +483,13 @@ def test_lying_can_pose_axis_along_the_direction_and_x_up():
     assert_allclose(pose[:3, 3], [0.1, -0.2, 0.03], atol=1e-12)
 
 
+def test_footprint_center_is_the_base_or_a_lying_axis_middle():
+    """footprint_center: the base centre of an upright can; the middle of a lying can's axis."""
+    base, axis = np.array([0.1, 0.2, 0.3]), np.array([0.0, 1.0, 0.0])
+    assert_allclose(g.footprint_center(base, axis, 0.12, lying=False), base)
+    assert_allclose(g.footprint_center(base, axis, 0.12, lying=True), [0.1, 0.26, 0.3])
+
+
 def test_fit_center_exact_arc():
     """On an exact half circle the centre is found to 1e-9 m from 1 cm away, arc coverage pi."""
     xy = circle_points((0.2, -0.1), CAN_R, 0.0, np.pi, 60)
