@@ -171,13 +171,18 @@ def _refit_can(pts, T_sensor_from_plane, T_plane_from_sensor, sensor_plane, can,
     # A can standing on an object (can_search) keeps that base height: its side starts there.
     base = float(can.support_height)
     low = a.min_height if base <= 0 else base + a.fit_bottom
+    # The top (m above the table) is the search's: its lid may be hidden (a cup on it) or crowded (a
+    # narrower can on it, a neighbour within region_margin), which the search looks at and a refit
+    # does not.
+    bottom = max(base, 0.0)
+    top = bottom + can.height
     # NaN compares False: holes fall out of the region without a check of their own.
     dx, dy, z = window[:, 0] - center[0], window[:, 1] - center[1], window[:, 2]
     region = dx * dx + dy * dy <= (can.radius + c.region_margin) ** 2
     region &= z > low
     # A can does not grow: what stands on it (a cup) or rises beside it (a taller can or box) above
     # its top is not its side.
-    region &= z <= min(a.max_height, max(base, 0.0) + can.height + c.region_margin)
+    region &= z <= min(a.max_height, top + c.region_margin)
     flat = np.flatnonzero(region)
     if len(flat) < a.min_fit_points:
         raise PerceptionError(f"{len(flat)} point(s) where the can was (min {a.min_fit_points})")
@@ -187,11 +192,7 @@ def _refit_can(pts, T_sensor_from_plane, T_plane_from_sensor, sensor_plane, can,
     offset = np.ones(len(points)) @ points / len(points) - sensor_plane
     sigma = a.noise_coefficient * float(offset @ offset)
     r_eps = max(a.r_eps, a.r_eps_sigmas * sigma)
-    # The top (m above the table) is the search's: its lid may be hidden (a cup on it) or crowded (a
-    # narrower can on it, a neighbour within region_margin), which the search looks at and a refit
-    # does not.
-    top = max(base, 0.0) + can.height
-    side = points[(z >= max(base, 0.0) + a.fit_bottom + 3 * sigma) & (z <= top - a.top_margin - 3 * sigma), :2]
+    side = points[(z >= bottom + a.fit_bottom + 3 * sigma) & (z <= top - a.top_margin - 3 * sigma), :2]
     if len(side) < a.min_fit_points:
         raise PerceptionError(f"{len(side)} side point(s) where the can was (min {a.min_fit_points})")
     if len(side) > c.max_fit_points:
