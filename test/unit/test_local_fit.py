@@ -12,6 +12,8 @@ from numpy.testing import assert_allclose
 from example_pcl import auto_finder as af
 from example_pcl import conversions
 from example_pcl import local_fit as lf
+from example_pcl import scene as sc
+from example_pcl import scene_objects as so
 from example_pcl import scene_sequence as ss
 from example_pcl.errors import PerceptionError
 
@@ -255,9 +257,6 @@ def test_cans_in_clutter_are_refitted_where_the_search_found_them(case):
     """An upright can with a cup or can on it, or touching another can or a box (issue 13's generated
     cases, development seeds 0-4) is refitted on the frame the search found it in: not lost to its
     neighbour's points, within 6 mm of the search's axis, with the search's height."""
-    from example_pcl import scene as sc
-    from example_pcl import scene_objects as so
-
     for seed in range(5):
         scene = sc.generate_scene(so.case_spec(case, seed))
         result = af.find_cans(scene.xyz)
