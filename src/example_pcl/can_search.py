@@ -28,10 +28,10 @@ and measured figures are in docs/can_search.md; in short, per cluster and round:
    a box's top): on that object (``support`` "object", or "can" when it is a can found
    below), base at that height. Else an object in front reaching up to the lowest visible
    point: base hidden, inferred on the table (``base_seen`` False). Else it floats: rejected.
-5. **Not a can.** Open top: points of the circle on its far half (away from the sensor) below
+5. **Not a can.** Open top: points within the circle on its far half (away from the sensor) below
    the rim, or inside the disc well below the rim - the inside of a hollow cylinder, so a cup,
    mug, bowl or pot. Handle: points just outside the circle within the can's height, on a narrow
-   arc, that do not reach down to the support - a mug.
+   arc, reaching further below the top than a lid's lip but not down to the support - a mug.
 6. The can's points are taken out of the cluster and the next round looks for another one.
 
 Speed: a verification looks only at the free points near its circle (cropped per round from the
@@ -82,7 +82,7 @@ class CylinderSearchConfig:
     table_gap: a base this close above min_height stands on the table; support_reach: a
     supporting surface is looked for this far around the can; occluder_reach: an object hiding
     the base is looked for this far in front. open_depth: a hollow cylinder shows points this far
-    below its rim; max_open_fraction: of the circle's near-half points within open_window below the
+    below its rim, a handle (not a lid's lip) this far below the top; max_open_fraction: of the circle's near-half points within open_window below the
     rim, the far-half (or deep inside) ones an open top shows at least. handle_reach: a handle
     sticks out at most this far; max_handle_arc (rad), min_handle_points. min_hidden_arc (rad): a
     side seen over less than the criterion's min_arc but at least this is still a can when an
@@ -792,7 +792,9 @@ def _open_top(points, cx, cy, r, r_eps, base, top, ctx):
     # Compared where both would show: the upper part (a cup's inside is seen only so deep).
     upper = low & (z > top - s.open_window)
     near = int((on & upper & (ahead > 0.3 * r)).sum())
-    far = int((on & upper & (ahead < -0.3 * r)).sum())
+    # Anywhere within the disc, not only on the circle: a mug's inner wall lies its wall's thickness
+    # inside, 8-12 mm on learn39's open mugs: beyond r_eps and short of "deep" (0.3 r inside).
+    far = int(((dist <= r + r_eps) & upper & (ahead < -0.3 * r)).sum())
     deep = int(((dist < 0.7 * r) & low).sum())
     limit = max(s.min_band_points, s.max_open_fraction * near)
     if far >= limit:
@@ -804,14 +806,17 @@ def _open_top(points, cx, cy, r, r_eps, base, top, ctx):
 
 
 def _handle(points, cx, cy, dist, r, r_eps, base, top, ctx):
-    """Why it has a handle (a mug), or "": points just outside the circle within its height, on an
-    arc narrower than max_handle_arc, none of them reaching down to the support or above the top
-    (a box or can touching it stands on the table or is taller)."""
+    """Why it has a handle (a mug), or "": points just outside the circle within its height, some
+    more than open_depth below the top, on an arc narrower than max_handle_arc, none of them
+    reaching down to the support or above the top (a box or can touching it stands on the table or
+    is taller)."""
     s = ctx.search
     z = points[:, 2]
     out = (dist > r + 2 * r_eps) & (dist <= r + s.handle_reach)
     mid = out & (z > base + 0.01) & (z < top - 0.005)
-    if mid.sum() < s.min_handle_points:
+    # A handle reaches further down than a lid's lip or a rim wider than the side (learn43's coffee
+    # canister: its lid's lip 10-14 mm out, 8-14 mm below the top, was a "handle" at one grid offset).
+    if mid.sum() < s.min_handle_points or np.count_nonzero(mid & (z < top - s.open_depth)) < s.min_handle_points:
         return ""
     angle = np.arctan2(points[:, 1] - cy, points[:, 0] - cx)
     order, arc = g.angular_order(angle[mid])

@@ -170,6 +170,38 @@ def test_cups_mugs_bowls_boxes_and_prisms_are_no_cans():
     assert len(result.rejected) >= 4 and all(r.reason for r in result.rejected)
 
 
+@pytest.mark.parametrize("tilt", [0.5, 0.6, 0.85])
+def test_a_thick_walled_cup_is_open_not_a_can(monkeypatch, tilt):
+    """A cup with a 10 mm wall (a ceramic mug's; learn39's show their inner wall 8-12 mm inside the
+    circle): its inner wall on the far half is the inside of a hollow cylinder."""
+    monkeypatch.setattr(so, "CUP_WALL", 0.010)
+    _, result, _ = search([Obj("cup", 0.0, 0.0, radius=0.04, height=0.095)], tilt=tilt)
+    assert result.cans == [], result.message
+    assert any(r.reason.startswith("open top") for r in result.rejected), result.message
+
+
+def side_points(r, top, angles, dr=0.0, z=None, n=40):
+    """Points (N, 3) at radius r + dr about the origin at the given angles (rad), at heights z (m;
+    default 1 cm up to the top, evenly)."""
+    z = np.linspace(0.01, top, n) if z is None else np.asarray(z, float)
+    a, zz = np.meshgrid(angles, z)
+    return np.column_stack([(r + dr) * np.cos(a.ravel()), (r + dr) * np.sin(a.ravel()), zz.ravel()])
+
+
+@pytest.mark.parametrize("below_top, handle", [((0.008, 0.014), False), ((0.03, 0.06), True)])
+def test_a_lid_lip_is_no_handle_but_the_same_bump_lower_is(below_top, handle):
+    """Points 12-14 mm outside a can's circle over a narrow arc: a lid's lip when they lie within
+    open_depth of the top (learn43's coffee canister, at one grid offset), a mug's handle lower down."""
+    r, top, r_eps = 0.058, 0.2, 0.006
+    side = side_points(r, top, np.linspace(-1.4, 1.4, 60))
+    bump = np.concatenate([side_points(r, top, np.linspace(0.2, 0.4, 6), dr=dr, z=np.linspace(top - below_top[1], top - below_top[0], 4))
+                           for dr in (0.0125, 0.0135)])
+    points = np.concatenate([side, bump])
+    ctx = type("Ctx", (), {"search": cs.CylinderSearchConfig()})()
+    why = cs._handle(points, 0.0, 0.0, np.hypot(points[:, 0], points[:, 1]), r, r_eps, 0.0, top, ctx)
+    assert bool(why) == handle, why
+
+
 def lying_truth(obj):
     """(middle of the axis (3,), unit axis (3,)) of a lying_can Obj, table frame (m)."""
     return np.array([obj.x, obj.y, obj.z + obj.radius]), np.array([np.cos(obj.yaw), np.sin(obj.yaw), 0.0])
@@ -436,6 +468,39 @@ def test_real_scenes_without_cans_have_none(name):
     cloud = read_pcd(str(OSD / f"{name}.pcd"))
     result = af.find_cans(cloud.xyz, viewpoint=cloud.origin)
     assert result.cans == [], result.message
+
+
+def views(cloud):
+    """The scene as the finder would see it at each of the four offsets of its every-2nd-pixel grid,
+    and mirrored (x negated, columns reversed: the same table seen in a mirror): (name, xyz (H, W, 3)
+    float32, object labels (H, W)). Which pixels the search sees changes what it finds at the margins."""
+    labels = cloud.points["label"].astype(int) // 10
+    for mirrored in (False, True):
+        xyz, lab = cloud.xyz, labels
+        if mirrored:
+            xyz, lab = xyz[:, ::-1] * np.array([-1, 1, 1], np.float32), lab[:, ::-1]
+        for dy, dx in ((0, 0), (0, 1), (1, 0), (1, 1)):
+            yield f"{'mirrored, ' if mirrored else ''}offset {dy},{dx}", np.ascontiguousarray(xyz[dy:, dx:]), lab[dy:, dx:]
+
+
+@needs_osd
+@pytest.mark.parametrize("name", sorted(json.loads(OBJECTS.read_text())["scenes"], key=lambda n: int(n[5:])))
+def test_real_scenes_give_the_same_cans_at_every_grid_offset_and_mirrored(name):
+    """Every labelled can found upright and every lying one lying, each on that object's points, and
+    nothing else, in all eight views of the scene (learn39's open mug was a can at one offset, learn43's
+    coffee canister a mug at another). learn38's upside-down mugs, handles hidden, are reported as
+    cans (docs/can_search.md, Upside-down mugs): expected to fail there."""
+    from example_pcl.pcd import read_pcd
+
+    if name == "learn38":
+        pytest.xfail("upside-down mugs with hidden handles are reported as cans (no depth feature separates them)")
+    cloud = read_pcd(str(OSD / f"{name}.pcd"))
+    objects = json.loads(OBJECTS.read_text())["scenes"][name]
+    for view, xyz, labels in views(cloud):
+        result = af.find_cans(xyz, viewpoint=cloud.origin)
+        for lying, kind in ((False, "can"), (True, "lying_can")):
+            owners = sorted(np.bincount(labels.reshape(-1)[c.indices]).argmax() for c in result.cans if c.lying == lying)
+            assert owners == sorted(o["label"] for o in objects if o["kind"] == kind), (view, kind, result.message)
 
 
 def test_batched_algebraic_circles_match_the_one_at_a_time_fit():
