@@ -10,7 +10,9 @@
   (looked up in the colour images). A can's centre is the circle fitted to its labelled side points.
 
 Per case: cans found / missed / false (an upright can reported where there is none, also an
-upright report of a lying can), lying cans reported as lying (axis within 10 degrees of the truth's
+upright report of a lying can; a generated can less than a quarter in view - fewer of its pixels
+return depth than a quarter of those it shows alone - is neither found nor missed: reported apart,
+"hidden found"), lying cans reported as lying (axis within 10 degrees of the truth's
 and the middle of the axis within the match distance horizontally: 15 mm generated, 20 mm real; with
 the median of both errors; a real lying can's truth is the middle of its labelled points' spans along
 and across their principal direction seen from above), median centre error (mm, horizontal,
@@ -20,6 +22,7 @@ against the truth's, where a gripper closes on a can from above) and time per fr
 docs/can_search.md between <!-- bench:cans --> markers.
 """
 import argparse
+import dataclasses
 import json
 import pathlib
 import statistics
@@ -43,12 +46,14 @@ OSD = PROJECT / ".." / "shared" / "data" / "osd"
 OBJECTS = HERE / "osd_objects.json"
 DOC = PROJECT / "docs" / "can_search.md"
 LYING_ANGLE = np.radians(10)  # a lying can's axis within this of the truth's
+MIN_IN_VIEW = 0.25  # a generated can counts when at least this fraction of it is in view
 FINDERS = {"can_search": af.AutoConfig(), "issue 5 finder": af.AutoConfig(search="clusters")}
 
 
 class Tally:
     def __init__(self):
         self.found = self.missed = self.false = self.lying = self.lying_total = 0
+        self.hidden_found = self.hidden_total = 0  # cans (upright or lying) less than MIN_IN_VIEW in view
         self.errors, self.times, self.support_ok, self.base_ok = [], [], [], []
         self.top_errors = []  # generated upright cans found: |found top - true top| (m)
         self.lying_errors, self.lying_angles = [], []
@@ -62,13 +67,14 @@ class Tally:
         if self.lying_errors:
             lying += (f" ({1e3 * statistics.median(self.lying_errors):.1f} mm, "
                       f"{np.degrees(statistics.median(self.lying_angles)):.1f} deg)")
-        return [name, finder, self.found, self.missed, self.false, lying, err, top, t]
+        hidden = f"{self.hidden_found}/{self.hidden_total}" if self.hidden_total else "-"
+        return [name, finder, self.found, self.missed, self.false, lying, hidden, err, top, t]
 
 
 def score(tally, found_cans, true_cans, true_lying, to_plane, match):
     """Matches found cans (sensor frame) with the truth (plane-frame dicts: center (x, y), radius,
     support_height, base_seen, top (generated: the top's height, m); lying: center (x, y, z) the middle of its
-    axis, axis (unit, horizontal))."""
+    axis, axis (unit, horizontal); either: hidden (optional, less than MIN_IN_VIEW in view))."""
     used, used_lying = set(), set()
     for can in found_cans:
         base = transforms.apply(to_plane, can.base_center)
@@ -80,7 +86,10 @@ def score(tally, found_cans, true_cans, true_lying, to_plane, match):
             hits = [(np.linalg.norm(mid[:2] - t["center"][:2]), k) for k, t in enumerate(true_lying)
                     if k not in used_lying and abs(axis @ t["axis"]) >= np.cos(LYING_ANGLE)]
             error, k = min(hits) if hits else (np.inf, -1)
-            if error < match:
+            if error < match and true_lying[k].get("hidden"):
+                used_lying.add(k)
+                tally.hidden_found += 1
+            elif error < match:
                 used_lying.add(k)
                 tally.lying += 1
                 tally.lying_errors.append(error)
@@ -98,31 +107,46 @@ def score(tally, found_cans, true_cans, true_lying, to_plane, match):
         k = int(np.argmin(errors)) if errors else -1
         if k >= 0 and k not in used and errors[k] < max(match, 0.5 * true_cans[k]["radius"]):
             used.add(k)
+            if true_cans[k].get("hidden"):
+                tally.hidden_found += 1
+                continue
             tally.found += 1
             tally.errors.append(errors[k])
             if "top" in true_cans[k]:
                 tally.top_errors.append(abs(base[2] + can.height * axis[2] - true_cans[k]["top"]))
         else:
             tally.false += 1
-    tally.missed += len(true_cans) - len(used)
-    tally.lying_total += len(true_lying)
+    tally.missed += sum(not t.get("hidden", False) for k, t in enumerate(true_cans) if k not in used)
+    tally.lying_total += sum(not t.get("hidden", False) for t in true_lying)
+    tally.hidden_total += sum(t.get("hidden", False) for t in true_cans + true_lying)
+
+
+def generated_truth(spec, scene):
+    """(T_plane_from_sensor, true cans, true lying cans) of a generated scene (score's dicts); a can
+    is hidden when fewer of its pixels return depth than MIN_IN_VIEW of those it shows alone."""
+    to_plane = transforms.invert(np.asarray(scene.truth["camera_from_table"]))
+    cans, lying = [], []
+    for obj, t in zip(spec.objects, scene.truth["objects"]):
+        if not (t["is_can"] or t["lying"]):
+            continue
+        alone = sc.generate_scene(dataclasses.replace(spec, objects=[obj])).truth["objects"][0]["visible_points"]
+        hidden = t["visible_points"] < MIN_IN_VIEW * alone
+        p = transforms.apply(to_plane, t["base_center"])
+        if t["is_can"]:
+            cans.append({"center": p[:2], "radius": t["radius"], "support_height": p[2], "top": p[2] + t["height"],
+                         "hidden": hidden})
+        else:
+            a = transforms.apply(to_plane, np.asarray(t["base_center"]) + t["height"] * np.asarray(t["axis"]))
+            lying.append({"center": 0.5 * (p + a), "axis": (a - p) / np.linalg.norm(a - p), "hidden": hidden})
+    return to_plane, cans, lying
 
 
 def generated(seeds, tallies):
     for case in so.CASES:
         for seed in seeds:
-            scene = sc.generate_scene(so.case_spec(case, seed))
-            T = np.asarray(scene.truth["camera_from_table"])
-            to_plane = transforms.invert(T)
-            cans, lying = [], []
-            for t in scene.truth["objects"]:
-                p = transforms.apply(to_plane, t["base_center"])
-                if t["is_can"]:
-                    cans.append({"center": p[:2], "radius": t["radius"], "support_height": p[2],
-                                 "top": p[2] + t["height"]})
-                elif t["lying"]:
-                    a = transforms.apply(to_plane, np.asarray(t["base_center"]) + t["height"] * np.asarray(t["axis"]))
-                    lying.append({"center": 0.5 * (p + a), "axis": (a - p) / np.linalg.norm(a - p)})
+            spec = so.case_spec(case, seed)
+            scene = sc.generate_scene(spec)
+            to_plane, cans, lying = generated_truth(spec, scene)
             for name, config in FINDERS.items():
                 result = af.find_cans(scene.xyz, config=config)
                 score(tallies.setdefault((case, name), Tally()), result.cans, cans, lying, to_plane, 0.015)
@@ -200,7 +224,7 @@ def main(argv=None):
         total = Tally()
         for (case, f), t in tallies.items():
             if f == finder and not case.startswith("real"):
-                for a in ("found", "missed", "false", "lying", "lying_total"):
+                for a in ("found", "missed", "false", "lying", "lying_total", "hidden_found", "hidden_total"):
                     setattr(total, a, getattr(total, a) + getattr(t, a))
                 total.errors += t.errors
                 total.top_errors += t.top_errors
@@ -209,7 +233,8 @@ def main(argv=None):
         tallies[("generated: all", finder)] = total
     rows = [t.row(case, finder, case.startswith("real")) for (case, finder), t in sorted(
         tallies.items(), key=lambda kv: (kv[0][0].startswith("real"), kv[0][0].endswith("all"), kv[0][0], kv[0][1]))]
-    header = ["case", "finder", "found", "missed", "false", "lying reported lying", "median centre error (mm)",
+    header = ["case", "finder", "found", "missed", "false", "lying reported lying", "hidden found",
+              "median centre error (mm)",
               "median top error (mm)", "time per frame median / p90 (ms)"]
     ratio = ""
     if ("real: all", "can_search") in tallies:

@@ -359,17 +359,18 @@ def generate_scene(spec=None, rng=None):
     heights = cam[2] + depth[seen] * rays[seen, 2]
     base_seen = [bool(np.any(heights[labels[seen] == LABEL_OBJECT + i] < obj.z + 0.02))
                  for i, obj in enumerate(spec.objects)]
+    visible = np.bincount(labels[seen] - LABEL_OBJECT, minlength=len(spec.objects))
 
     return Scene(
         xyz=xyz,
         rgb=np.clip(np.round(rgb), 0, 255).astype(np.uint8).reshape(HEIGHT, WIDTH, 3),
         labels=labels.reshape(HEIGHT, WIDTH),
-        truth=_truth(spec, T_table_cam, base_seen),
+        truth=_truth(spec, T_table_cam, base_seen, visible),
         spec=spec,
     )
 
 
-def _truth(spec, T_table_cam, base_seen=()):
+def _truth(spec, T_table_cam, base_seen=(), visible=()):
     T = transforms.invert(T_table_cam)  # camera_from_table
     R = T[:3, :3]
     up = R[:, 2]
@@ -395,7 +396,8 @@ def _truth(spec, T_table_cam, base_seen=()):
         "floor": plane((0, 0, -spec.table_height)),
         "cans": cans,
         "boxes": boxes,
-        "objects": [scene_objects.truth(obj, T, seen) for obj, seen in zip(spec.objects, base_seen)],
+        "objects": [scene_objects.truth(obj, T, seen, int(n))
+                    for obj, seen, n in zip(spec.objects, base_seen, visible)],
         "spec": json.loads(json.dumps(dataclasses.asdict(spec))),  # tuples become lists
     }
 

@@ -205,11 +205,12 @@ def hit_object(obj, o, d, t_min):
 # --- truth ------------------------------------------------------------------------------------------
 
 
-def truth(obj, T_camera_from_table, base_visible):
+def truth(obj, T_camera_from_table, base_visible, visible_points):
     """JSON-able truth of obj in the camera frame: kind, is_can (an upright can a robot would
     grasp), lying, base_center (upright: centre of its base; lying: of one end), axis (unit, up or
     along a lying can), radius, height (a lying can's length), support, support_height (m above
-    the table), base_seen (some of the lowest 2 cm of its side returned depth)."""
+    the table), base_seen (some of the lowest 2 cm of its side returned depth), visible_points (its
+    pixels that returned depth)."""
     R, t = T_camera_from_table[:3, :3], T_camera_from_table[:3, 3]
     if obj.kind == "lying_can":
         axis = np.array([np.cos(obj.yaw), np.sin(obj.yaw), 0.0])
@@ -220,7 +221,8 @@ def truth(obj, T_camera_from_table, base_visible):
     return {"kind": obj.kind, "is_can": obj.kind == "can", "lying": obj.kind == "lying_can",
             "base_center": (R @ base + t).tolist(), "axis": (R @ axis).tolist(), "radius": float(obj.radius),
             "height": float(obj.height), "size": [float(s) for s in obj.size], "yaw": float(obj.yaw),
-            "support": obj.support, "support_height": float(obj.z), "base_seen": bool(base_visible)}
+            "support": obj.support, "support_height": float(obj.z), "base_seen": bool(base_visible),
+            "visible_points": int(visible_points)}
 
 
 # --- the cases of issue 13 ----------------------------------------------------------------------------
@@ -284,6 +286,8 @@ def case_objects(case, rng):
                 Obj("box", 0.15 + j(), j(), size=(0.07, 0.05, 0.12), yaw=float(rng.uniform(0.3, 1.2)))]
     if case.startswith("lying can"):
         return _lying_touching(case, rng, j)
+    if case == "cluttered table":
+        return _cluttered(rng)
     raise PerceptionError(f"unknown case {case!r}; one of {', '.join(CASES)}")
 
 
@@ -325,9 +329,57 @@ def _lying_touching(case, rng, j):
     return [lying, other]
 
 
+def _cluttered(rng):
+    """6-9 objects of every kind on one table (half of them cans), each placed where its footprint
+    (a circle round it seen from above) overlaps none placed before: at random, or half the time
+    1-15 mm from one placed before, so objects touch, stand close and hide each other."""
+    def draw(kind):
+        if kind == "can":
+            return _can(rng, 0.0, 0.0)
+        if kind == "lying_can":
+            return _lying_can(rng, 0.0, 0.0, float(rng.uniform(0, np.pi)))
+        if kind in ("cup", "mug"):
+            return Obj(kind, 0.0, 0.0, radius=float(rng.uniform(0.03, 0.045)), height=float(rng.uniform(0.07, 0.11)),
+                       yaw=float(rng.uniform(0, 2 * np.pi)))
+        if kind == "bowl":
+            return Obj("bowl", 0.0, 0.0, radius=float(rng.uniform(0.06, 0.08)), height=float(rng.uniform(0.05, 0.07)))
+        if kind == "tin":
+            return Obj("tin", 0.0, 0.0, radius=float(rng.uniform(0.09, 0.11)), height=float(rng.uniform(0.05, 0.08)))
+        if kind == "prism":
+            return Obj("prism", 0.0, 0.0, radius=float(rng.uniform(0.03, 0.05)), height=float(rng.uniform(0.08, 0.15)),
+                       yaw=float(rng.uniform(0, 2 * np.pi)))
+        return Obj("box", 0.0, 0.0, size=(float(rng.uniform(0.04, 0.14)), float(rng.uniform(0.04, 0.12)),
+                                          float(rng.uniform(0.04, 0.2))), yaw=float(rng.uniform(0, np.pi)))
+
+    def footprint(obj):
+        if obj.kind == "box":
+            return 0.5 * float(np.hypot(obj.size[0], obj.size[1]))
+        if obj.kind == "lying_can":
+            return float(np.hypot(0.5 * obj.height, obj.radius))
+        return obj.radius + (HANDLE[0] if obj.kind == "mug" else 0.0)
+
+    kinds = ["can"] * 5 + ["lying_can", "cup", "mug", "bowl", "tin", "prism", "box", "box"]
+    placed = []
+    for _ in range(int(rng.integers(6, 10))):
+        obj = draw(kinds[int(rng.integers(len(kinds)))])
+        for _ in range(50):
+            if placed and rng.random() < 0.5:
+                near = placed[int(rng.integers(len(placed)))]
+                d, a = footprint(near) + footprint(obj) + float(rng.uniform(0.001, 0.015)), float(rng.uniform(0, 2 * np.pi))
+                obj.x, obj.y = near.x + d * np.cos(a), near.y + d * np.sin(a)
+            else:
+                obj.x, obj.y = float(rng.uniform(-0.25, 0.25)), float(rng.uniform(-0.15, 0.2))
+            if abs(obj.x) <= 0.3 and abs(obj.y) <= 0.25 and all(
+                    np.hypot(obj.x - o.x, obj.y - o.y) >= footprint(obj) + footprint(o) + 0.001 for o in placed):
+                obj.x, obj.y = float(obj.x), float(obj.y)
+                placed.append(obj)
+                break
+    return placed
+
+
 CASES = ("cup on can", "can on can", "cans touching", "can touching box", "box hides base", "can on tin",
          "can on box", "lying can", "mug and bowl", "boxes and prisms", "lying can touching box",
-         "lying can touching can", "lying cans touching")
+         "lying can touching can", "lying cans touching", "cluttered table")
 
 
 def case_spec(case, seed):

@@ -364,3 +364,18 @@ def test_can_pose_error_against_truth():
     tilted = geometry.plane_frame((0.0, -0.7, -0.7), truth["base_center"])
     expected = np.degrees(np.arccos(np.dot(np.array([0.0, -0.7, -0.7]) / np.sqrt(0.98), truth["axis"])))
     assert sc.can_pose_error(tilted, truth)[1] == pytest.approx(expected, abs=1e-6)
+
+
+def test_visible_points_count_each_objects_returned_pixels():
+    """truth objects' visible_points: the pixels that returned depth on that object; a can behind a
+    taller box shows fewer than the same can alone."""
+    from example_pcl.scene_objects import Obj
+
+    can = Obj("can", 0.0, 0.1, radius=0.03, height=0.1)
+    box = Obj("box", 0.0, 0.05, size=(0.12, 0.03, 0.12))
+    scene = sc.generate_scene(exact(cans=[], objects=[can, box]))
+    alone = sc.generate_scene(exact(cans=[], objects=[can]))
+    returned = np.isfinite(scene.xyz[..., 2])
+    counts = [o["visible_points"] for o in scene.truth["objects"]]
+    assert counts == [int(np.count_nonzero(returned & (scene.labels == sc.LABEL_OBJECT + i))) for i in range(2)]
+    assert 0 < counts[0] < alone.truth["objects"][0]["visible_points"]
