@@ -560,6 +560,27 @@ def shape_error(xy, cx, cy, radius, bins):
     return float(np.sqrt(means @ means / bins))
 
 
+def facet_ratio(xy, cx, cy, radius):
+    """How straight the two halves of an arc of points are (dimensionless): split at the middle of
+    the arc they span around (cx, cy) (m), the larger over the halves of the rms distance to the
+    half's own best line over the rms distance to the circle of `radius` (m). Above 1 when the
+    circle's curvature shows through the noise; below 1 on both halves for two flat faces meeting
+    at a corner (a box's) that a circle touches. NaN when a half holds fewer than 3 points."""
+    xy = np.asarray(xy, dtype=float)[:, :2]
+    angle = np.arctan2(xy[:, 1] - cy, xy[:, 0] - cx)
+    order, span = angular_order(angle)
+    along = (angle[order] - angle[order[0]]) % (2 * np.pi)
+    ratio = 0.0
+    for half in (xy[order][along < 0.5 * span], xy[order][along >= 0.5 * span]):
+        if len(half) < 3:
+            return float("nan")
+        centred = half - half.mean(axis=0)
+        line = np.sqrt(max(np.linalg.eigvalsh(centred.T @ centred / len(half))[0], 0.0))
+        circle = np.sqrt(np.mean((np.hypot(half[:, 0] - cx, half[:, 1] - cy) - radius) ** 2))
+        ratio = max(ratio, line / circle if circle > 0 else np.inf)
+    return float(ratio)
+
+
 def _from_start(xy, c0):
     """(xy, c0, u, v): the points (N, 2), the start centre c0 (2,) and the points' coordinates relative
     to it (m), so far-away frames keep their precision in the circle fits."""

@@ -197,9 +197,47 @@ def test_a_lid_lip_is_no_handle_but_the_same_bump_lower_is(below_top, handle):
     bump = np.concatenate([side_points(r, top, np.linspace(0.2, 0.4, 6), dr=dr, z=np.linspace(top - below_top[1], top - below_top[0], 4))
                            for dr in (0.0125, 0.0135)])
     points = np.concatenate([side, bump])
-    ctx = type("Ctx", (), {"search": cs.CylinderSearchConfig()})()
+    # Seen from along +x, 0.8 m up; nothing else stands on the table.
+    ctx = type("Ctx", (), {"search": cs.CylinderSearchConfig(), "standing": points,
+                           "sensor": np.array([1.0, 0.0, 0.8])})()
     why = cs._handle(points, 0.0, 0.0, np.hypot(points[:, 0], points[:, 1]), r, r_eps, 0.0, top, ctx)
     assert bool(why) == handle, why
+
+
+@pytest.mark.parametrize("seed", [402, 414, 416])
+def test_a_narrow_box_corner_is_no_can(seed):
+    """"boxes and prisms", development seeds where a circle touching both faces of a 4 x 4 cm box's
+    corner (the corner outside it, beyond r_eps) passed every other rule: no can."""
+    scene = sc.generate_scene(so.case_spec("boxes and prisms", seed))
+    result = af.find_cans(scene.xyz)
+    assert result.cans == [], result.message
+
+
+def test_a_corner_the_circle_touches_is_two_flat_faces():
+    """The same box alone, turned so that a circle touches both faces of the corner facing the
+    camera: a can when the two halves' straightness is not looked at, none when it is."""
+    obj = Obj("box", 0.0, 0.0, size=(0.04, 0.04, 0.17), yaw=np.pi / 6)
+    spec = sc.SceneSpec(cans=[], objects=[obj], camera_distance=0.9, tilt=0.7, seed=7)
+    xyz = sc.generate_scene(spec).xyz
+    blind = af.AutoConfig(cylinders=cs.CylinderSearchConfig(max_facet_ratio=0.0))
+    assert len(af.find_cans(xyz, config=blind).cans) == 1
+    assert af.find_cans(xyz).cans == []
+
+
+@pytest.mark.parametrize("seed", [0, 2, 14])
+def test_every_can_on_a_cluttered_table_is_found_and_nothing_else(seed):
+    """"cluttered table", development seeds with every can at least half in view: each upright can
+    found within 3 mm, each lying can reported lying, nothing else (seed 14: a can with a cup touching
+    it, seen between it and a can in front, was a mug)."""
+    scene = sc.generate_scene(so.case_spec("cluttered table", seed))
+    to_table = transforms.invert(np.asarray(scene.truth["camera_from_table"]))
+    result = af.find_cans(scene.xyz)
+    upright = [transforms.apply(to_table, t["base_center"])[:2] for t in scene.truth["objects"] if t["is_can"]]
+    found = [table_xy(to_table, c)[:2] for c in result.cans if not c.lying]
+    assert len(found) == len(upright), result.message
+    for p in upright:
+        assert min(np.hypot(*(f - p)) for f in found) < 0.003, (p, result.message)
+    assert sum(c.lying for c in result.cans) == sum(t["lying"] for t in scene.truth["objects"])
 
 
 def lying_truth(obj):

@@ -648,3 +648,21 @@ def test_angular_order_starts_after_the_widest_gap_across_the_seam():
     assert span == pytest.approx(1.5)
     unwrapped = np.mod(shuffled[order] - 2.5, 2 * np.pi)
     assert np.all(np.diff(unwrapped) > 0) and unwrapped[0] == pytest.approx(0.0, abs=1e-9)
+
+
+def test_facet_ratio_tells_a_corner_from_an_arc():
+    """Noisy points over 2.4 rad of a circle: both halves curve (ratio above 1); the two faces of a
+    square's corner that the circle touches: both halves straight (below 1); too few points: NaN."""
+    rng = np.random.default_rng(11)
+    r, noise = 0.03, 0.0008
+    angle = rng.uniform(-1.2, 1.2, 400)
+    arc = np.c_[r * np.cos(angle), r * np.sin(angle)] + rng.normal(0.0, noise, (400, 2))
+    assert g.facet_ratio(arc, 0.0, 0.0, r) > 1.3
+    # Two faces at right angles meeting at (r sqrt 2, 0), touching the circle at +-45 degrees, each
+    # from 15 mm beyond its tangent point to the corner.
+    normal = np.array([np.cos(np.pi / 4), np.sin(np.pi / 4)])
+    s = rng.uniform(-0.015, r, 200)[:, None]
+    upper = r * normal + s * np.array([normal[1], -normal[0]])
+    faces = np.concatenate([upper, upper * [1.0, -1.0]]) + rng.normal(0.0, noise, (400, 2))
+    assert g.facet_ratio(faces, 0.0, 0.0, r) < 0.8
+    assert np.isnan(g.facet_ratio(arc[:4], 0.0, 0.0, r))
