@@ -101,6 +101,8 @@ class CylinderSearchConfig:
     max_facet_ratio: a side seen over at least min_arc whose two halves both lie closer to a line
     than to the circle (rms, below this ratio: geometry.facet_ratio) is two flat faces, a box's
     corner the circle touches, not a can.
+    lid_arc (rad): a can seen by its lid alone (its side hidden behind an object in front) shows the
+    lid's rim over at least this on the half away from the sensor (_lid_only).
     lying_gap (m), lying_directions: lying cans are looked for in each cluster and in what the upright
     search leaves (example_pcl.lying): a lying can's axis, scanned over lying_directions directions,
     lies one radius above the table to within lying_gap (and 3 sigma). lying_join_angle (rad), lying_join_offset (m),
@@ -143,6 +145,7 @@ class CylinderSearchConfig:
     max_taper: float = 0.07
     taper_sigmas: float = 3.0
     max_facet_ratio: float = 1.0
+    lid_arc: float = 2.5
     lying_gap: float = 0.01
     lying_directions: int = 36
     lying_join_angle: float = 0.1
@@ -765,7 +768,7 @@ def _rest_hidden(side_xy, cx, cy, r, r_eps, z_lo, z_hi, ctx, samples=13, limb=1.
     front = _toward_sensor(cx, cy, ctx)
     theta = np.arctan2(front[1], front[0]) + np.linspace(-limb, limb, samples)
     seen_angle = np.arctan2(side_xy[:, 1] - cy, side_xy[:, 0] - cx)
-    gap = np.abs((seen_angle[None, :] - theta[:, None] + np.pi) % (2 * np.pi) - np.pi).min(axis=1)
+    gap = np.abs((seen_angle[None, :] - theta[:, None] + np.pi) % (2 * np.pi) - np.pi).min(axis=1, initial=np.pi)
     unseen = theta[gap > limb / (samples - 1)]
     if len(unseen) == 0:
         return True
@@ -982,12 +985,78 @@ def search_cluster(points, ctx):
         for can in lying_cans:
             free[can.indices] = False
     rest = np.flatnonzero(free)
+    # What is left may be a can seen by its lid alone, its side hidden behind what stands in front.
+    can = _lid_only(points, rest, ctx) if len(rest) >= c.min_fit_points else None
+    if can is not None:
+        cans.append(can)
+        ctx.found.append(can)
+        free[can.indices] = False
+        rest = np.flatnonzero(free)
     if len(rest) >= c.min_fit_points or not (cans or rejections):
         reason, radius = last or ("nothing round left", None)
         reason = f"{reason}; {lying_why}" if lying_why else reason
         rejections.append(Rejection(centroid=points[rest].mean(axis=0) if len(rest) else points.mean(axis=0),
                                     n_points=len(rest), reason=reason, radius=radius))
     return cans, rejections
+
+
+def _lid_only(points, rest, ctx):
+    """A can seen by its lid alone (Can with indices into the cluster's points, or None): its side
+    hidden behind an object in front, only its lid and a little of its side under it show ("cans
+    touching", "cluttered table": a can behind a taller one). rest: indices of the cluster's points
+    no can took.
+
+    The lid: the points within max(5 mm, 3 sigma) of the height of the fullest band at least
+    min_can_height up. The circle of its rim (geometry.rim_circle, from its outline on the half away
+    from the sensor): a can's radius, round (facet_ratio), rms within max(2 mm, 2 sigma), over at
+    least lid_arc, holding 95 % of the lid's points. Then its side hidden: the points near the
+    circle on its near half within min_can_height under the lid, and every part of that half that
+    shows none of them behind something nearer the sensor below that (_rest_hidden); no open top,
+    no can found there."""
+    c, s = ctx.config, ctx.search
+    pts = points[rest]
+    z = pts[:, 2]
+    high = z >= c.min_can_height
+    if np.count_nonzero(high) < c.min_fit_points:
+        return None
+    band = np.floor(z / s.band_height).astype(np.int64)
+    fullest = int(np.argmax(np.bincount(band[high])))
+    z_lid = float(np.median(z[np.abs(band - fullest) <= 1]))
+    sigma = _sigma(ctx, pts[high].mean(axis=0))
+    r_eps = max(c.r_eps, c.r_eps_sigmas * sigma)
+    lid = pts[np.abs(z - z_lid) <= max(0.005, 3 * sigma)]
+    if len(lid) < c.min_fit_points:
+        return None
+    rim = g.rim_circle(lid, ctx.sensor[:2], r_eps)
+    if rim is None or len(rim.outline) < c.shape_bins:
+        return None
+    cx, cy, r, far = rim.cx, rim.cy, rim.radius, rim.outline
+    rms = float(np.sqrt(np.mean(rim.residual ** 2)))
+    if not (c.min_radius <= r <= c.max_radius and rms <= max(0.002, 2 * sigma)
+            and g.facet_ratio(far, cx, cy, r - 0.5 * rim.spacing) >= s.max_facet_ratio
+            and g.arc_coverage(far[np.abs(rim.residual) <= r_eps], cx, cy) >= s.lid_arc
+            and np.mean(np.hypot(lid[:, 0] - cx, lid[:, 1] - cy) <= r + r_eps) >= 0.95):
+        return None
+    if any(not other.lying and np.hypot(*(other.center_plane - (cx, cy))) < r + other.radius for other in ctx.found):
+        return None
+    dist = np.hypot(pts[:, 0] - cx, pts[:, 1] - cy)
+    side = (np.abs(dist - r) <= r_eps) & (z < z_lid - s.band_height) & _facing(pts[:, 0], pts[:, 1], cx, cy, r, ctx)
+    # Its side seen at most min_can_height under the lid (a few points lower: a neighbour's within
+    # r_eps), hidden below: a 4 x 4 cm box's top, its faces seen down to the table (70 % of the
+    # points near the circle lower), was a lid ("boxes and prisms", development seeds 413, 417).
+    hidden_below = z_lid - c.min_can_height
+    low = np.count_nonzero(z[side] < hidden_below)
+    if (low > max(s.min_band_points, 0.2 * np.count_nonzero(side))
+            or _open_top(pts[dist <= r + r_eps], cx, cy, r, r_eps, 0.0, z_lid, ctx)
+            or not _rest_hidden(pts[side, :2], cx, cy, r, r_eps, c.min_height + 0.01, hidden_below, ctx)):
+        return None
+    mine = rest[(dist <= r + r_eps) & (z <= z_lid + s.band_height)]
+    return Can(T_sensor_from_can=g.can_pose(ctx.T_sensor_from_plane, cx, cy, 0.0), radius=r, height=z_lid,
+               rms_error=rms, arc_coverage=g.arc_coverage(pts[side, :2], cx, cy) if side.any() else 0.0,
+               n_points=len(mine), n_fit_points=int(np.count_nonzero(np.abs(rim.residual) <= r_eps)),
+               center_plane=np.array([cx, cy]),
+               shape_error=g.shape_error(far, cx, cy, r - 0.5 * rim.spacing, c.shape_bins),
+               indices=mine, support="table", base_seen=False, support_height=0.0)
 
 
 def _lying(points, rest, ctx):

@@ -581,6 +581,54 @@ def facet_ratio(xy, cx, cy, radius):
     return float(ratio)
 
 
+@dataclass(frozen=True)
+class RimCircle:
+    """The circle of a disc's rim seen from above (rim_circle): centre (cx, cy), radius (m, plane
+    frame); outline: float64 (K, 2), the outermost points on the half away from the sensor;
+    residual: their distance to the circle fitted to them (m, (K,)), whose radius is the rim's less
+    half the sample spacing (m)."""
+
+    cx: float
+    cy: float
+    radius: float
+    outline: np.ndarray
+    residual: np.ndarray
+    spacing: float
+
+
+def rim_circle(disc_xy, sensor_xy, r_eps, sectors=36):
+    """The circle of the rim of a disc of points seen from above (a can's lid), from its outline on
+    the half away from the sensor, where the rim is seen against what lies behind (the near half may
+    be hidden): the outermost point in each of `sectors` sectors around the points' centroid,
+    fitted algebraically, then by Tukey's biweight (fit_circle_robust; r_eps, m). The outermost
+    samples lie on average half a sample spacing inside the rim (the median distance from some
+    points to their nearest neighbour): added to the radius. disc_xy: float (N, 2+) (m);
+    sensor_xy: (2,). RimCircle, or None when fewer than 3 outline points or no circle fits."""
+    xy = _xy(disc_xy)
+    centroid = xy.mean(axis=0)
+    rel = xy - centroid
+    reach = np.hypot(rel[:, 0], rel[:, 1])
+    sector = ((np.arctan2(rel[:, 1], rel[:, 0]) + np.pi) / (2 * np.pi) * sectors).astype(np.int64) % sectors
+    order = np.lexsort((reach, sector))
+    outline = xy[order[np.r_[sector[order][1:] != sector[order][:-1], True]]]
+    outline = outline[(outline - centroid) @ (np.asarray(sensor_xy, dtype=float)[:2] - centroid) < 0]
+    if len(outline) < 3:
+        return None
+    cx, cy, r = fit_circle_algebraic(outline)
+    if not np.isfinite(r):
+        return None
+    try:
+        cx, cy, r, _ = fit_circle_robust(outline, (cx, cy), r, r_eps)
+    except PerceptionError:
+        return None
+    probe = xy[:: max(1, len(xy) // 64)]
+    gaps = np.hypot(probe[:, None, 0] - xy[None, :, 0], probe[:, None, 1] - xy[None, :, 1])
+    spacing = float(np.median(np.where(gaps > 0, gaps, np.inf).min(axis=1)))
+    spacing = spacing if np.isfinite(spacing) else 0.0
+    residual = np.hypot(outline[:, 0] - cx, outline[:, 1] - cy) - r
+    return RimCircle(float(cx), float(cy), float(r + 0.5 * spacing), outline, residual, spacing)
+
+
 def _from_start(xy, c0):
     """(xy, c0, u, v): the points (N, 2), the start centre c0 (2,) and the points' coordinates relative
     to it (m), so far-away frames keep their precision in the circle fits."""

@@ -16,7 +16,8 @@ sensor frame, metres, NaN holes):
    on radius, inlier fraction (of the side points within the fitted disc, so a neighbour touching it
    does not count), rms residual, shape error and visible arc (the search's ``min_hidden_arc`` or
    ``min_occluded_arc`` for a can it found partly hidden), plus a radius change of at most
-   ``max_radius_change``. A lying can (can_search's, on its side) is refitted from the pixels of its
+   ``max_radius_change``. A can whose base is hidden and whose side shows too little (the search
+   found it by its lid, behind a taller can) is refitted by its lid's rim (geometry.rim_circle). A lying can (can_search's, on its side) is refitted from the pixels of its
    window within its radius plus ``region_margin`` of its previous axis, between its ends grown by
    ``region_margin``: Gauss-Newton on its horizontal axis and radius (lying.py) from the previous
    cylinder, then lying.judge_lying's criterion and the same radius change.
@@ -193,6 +194,11 @@ def _refit_can(pts, T_sensor_from_plane, T_plane_from_sensor, sensor_plane, can,
     sigma = a.noise_coefficient * float(offset @ offset)
     r_eps = max(a.r_eps, a.r_eps_sigmas * sigma)
     side = points[(z >= bottom + a.fit_bottom + 3 * sigma) & (z <= top - a.top_margin - 3 * sigma), :2]
+    rows, cols = np.divmod(flat, c1 - c0)
+    indices = (rows + r0) * pts.shape[1] + (cols + c0)
+    if len(side) < a.min_fit_points and not can.base_seen:
+        # Its side hidden behind something in front (the search found it by its lid): the lid's rim.
+        return _refit_lid(points, indices, T_sensor_from_plane, sensor_plane, can, top, sigma, r_eps, config)
     if len(side) < a.min_fit_points:
         raise PerceptionError(f"{len(side)} side point(s) where the can was (min {a.min_fit_points})")
     if len(side) > c.max_fit_points:
@@ -231,12 +237,30 @@ def _refit_can(pts, T_sensor_from_plane, T_plane_from_sensor, sensor_plane, can,
     if shape > a.max_shape_error:
         raise PerceptionError(f"shape error {1e3 * shape:.2f} mm > {1e3 * a.max_shape_error:.2f} mm (not round)")
     T_can = g.can_pose(T_sensor_from_plane, cx, cy, base)
-    rows, cols = np.divmod(flat, c1 - c0)
-    indices = (rows + r0) * pts.shape[1] + (cols + c0)
     return Can(T_sensor_from_can=T_can, radius=radius, height=can.height, rms_error=rms,
                arc_coverage=arc, n_points=len(flat), n_fit_points=n_inliers,
                center_plane=np.array([cx, cy]), shape_error=shape, indices=indices, support=can.support,
                base_seen=can.base_seen, support_height=base)
+
+
+def _refit_lid(points, indices, T_sensor_from_plane, sensor_plane, can, top, sigma, r_eps, config):
+    """A can whose side is hidden, refitted by its lid's rim (geometry.rim_circle on the region's
+    points within max(5 mm, 3 sigma) of its top; plane frame, m): the search's criterion for a can
+    seen by its lid (can_search._lid_only) on rms and the rim's arc, and the radius change."""
+    c, a = config, config.auto
+    lid = points[np.abs(points[:, 2] - top) <= max(0.005, 3 * sigma)]
+    if len(lid) < a.min_fit_points:
+        raise PerceptionError(f"{len(lid)} side or lid point(s) where the can was (min {a.min_fit_points})")
+    rim = g.rim_circle(lid, sensor_plane[:2], r_eps)
+    if rim is None or abs(rim.radius - can.radius) > c.max_radius_change:
+        raise PerceptionError("its lid's rim fits no circle of its radius")
+    rms = float(np.sqrt(np.mean(rim.residual ** 2)))
+    arc = g.arc_coverage(rim.outline[np.abs(rim.residual) <= r_eps], rim.cx, rim.cy)
+    if rms > max(0.002, 2 * sigma) or arc < a.cylinders.lid_arc:
+        raise PerceptionError(f"its lid's rim: rms {1e3 * rms:.2f} mm, seen over {arc:.2f} rad")
+    return dataclasses.replace(can, T_sensor_from_can=g.can_pose(T_sensor_from_plane, rim.cx, rim.cy, can.support_height),
+                               radius=rim.radius, rms_error=rms, n_points=len(points), n_fit_points=len(rim.outline),
+                               center_plane=np.array([rim.cx, rim.cy]), indices=indices)
 
 
 def refit_lying_can(xyz, T_sensor_from_plane, can, config=LocalFitConfig(), viewpoint=(0.0, 0.0, 0.0), others=()):

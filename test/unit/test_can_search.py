@@ -240,6 +240,27 @@ def test_every_can_on_a_cluttered_table_is_found_and_nothing_else(seed):
     assert sum(c.lying for c in result.cans) == sum(t["lying"] for t in scene.truth["objects"])
 
 
+def test_a_can_behind_a_taller_one_is_found_by_its_lid():
+    """A can 2 mm behind a taller, wider one, its side hidden, its lid seen above it: found there
+    (centre within CENTRE_TOLERANCE, radius within 2 mm, height within 5 mm), its base not seen."""
+    front, back = Obj("can", 0.0, 0.0, radius=0.04, height=0.15), Obj("can", 0.01, 0.072, radius=0.03, height=0.12)
+    _, result, to_table = search([front, back], camera_distance=0.9, tilt=1.1)
+    assert_cans_at(result, to_table, [front, back])
+    can = min(result.cans, key=lambda c: np.hypot(*(table_xy(to_table, c)[:2] - (back.x, back.y))))
+    assert not can.base_seen and can.support == "table"
+    assert can.radius == pytest.approx(back.radius, abs=0.002) and can.height == pytest.approx(back.height, abs=0.005)
+
+
+@pytest.mark.parametrize("kind", ["cup", "box", "prism"])
+@pytest.mark.parametrize("tilt", [1.0, 1.1])
+def test_what_shows_only_its_top_behind_a_can_is_no_can_unless_round_and_closed(kind, tilt):
+    """An open cup, a box or a prism behind a taller can, only its top seen above it: no can there."""
+    front = Obj("can", 0.0, 0.0, radius=0.04, height=0.15)
+    behind = Obj(kind, 0.01, 0.072, radius=0.03, height=0.12, size=(0.06, 0.06, 0.12), yaw=0.5)
+    _, result, to_table = search([front, behind], camera_distance=0.9, tilt=tilt)
+    assert_cans_at(result, to_table, [front, behind])
+
+
 def lying_truth(obj):
     """(middle of the axis (3,), unit axis (3,)) of a lying_can Obj, table frame (m)."""
     return np.array([obj.x, obj.y, obj.z + obj.radius]), np.array([np.cos(obj.yaw), np.sin(obj.yaw), 0.0])

@@ -666,3 +666,16 @@ def test_facet_ratio_tells_a_corner_from_an_arc():
     faces = np.concatenate([upper, upper * [1.0, -1.0]]) + rng.normal(0.0, noise, (400, 2))
     assert g.facet_ratio(faces, 0.0, 0.0, r) < 0.8
     assert np.isnan(g.facet_ratio(arc[:4], 0.0, 0.0, r))
+
+
+def test_rim_circle_of_a_lid_seen_in_part():
+    """A disc of points on a 5 mm grid (a lid sampled every 2nd pixel about 1.2 m away) whose near
+    third is hidden: the rim's circle within 1 mm (centre) and 1.5 mm (radius, the half spacing
+    added); the sensor on the near side; too few points: None."""
+    r, step = 0.03, 0.005
+    grid = np.mgrid[-0.04:0.04:step, -0.04:0.04:step].reshape(2, -1).T + 0.0013
+    disc = grid[(np.hypot(grid[:, 0], grid[:, 1]) <= r) & (grid[:, 1] > -0.012)]
+    rim = g.rim_circle(disc + [0.2, 0.1], np.array([0.2, -0.8]), 0.006)
+    assert np.hypot(rim.cx - 0.2, rim.cy - 0.1) < 0.001
+    assert rim.radius == pytest.approx(r, abs=0.0015) and rim.spacing == pytest.approx(step, abs=1e-6)
+    assert g.rim_circle(disc[:2], np.array([0.0, -0.8]), 0.006) is None

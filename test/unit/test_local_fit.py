@@ -264,3 +264,18 @@ def test_cans_in_clutter_are_refitted_where_the_search_found_them(case):
             refitted = lf.refit_can(scene.xyz, result.T_sensor_from_plane, can)
             assert np.linalg.norm(refitted.base_center - can.base_center) < 0.006, (seed, can.base_center)
             assert refitted.height == can.height and refitted.support_height == can.support_height
+
+
+@pytest.mark.parametrize("case, seed", [("cans touching", 412), ("cluttered table", 12), ("cluttered table", 427)])
+def test_a_can_found_by_its_lid_is_refitted_by_its_lid(case, seed):
+    """A can the search found by its lid alone, its side hidden behind a taller one (development
+    seeds), is refitted on that frame - by its lid's rim where too little of its side shows (seed
+    412): within 2 mm of the search's axis, the same radius within 1 mm, base still not seen."""
+    scene = sc.generate_scene(so.case_spec(case, seed))
+    result = af.find_cans(scene.xyz)
+    hidden = [c for c in result.cans if not c.lying and not c.base_seen]
+    assert hidden, result.message
+    for can in hidden:
+        refitted = lf.refit_can(scene.xyz, result.T_sensor_from_plane, can)
+        assert np.linalg.norm(refitted.base_center - can.base_center) < 0.002
+        assert refitted.radius == pytest.approx(can.radius, abs=0.001) and not refitted.base_seen
