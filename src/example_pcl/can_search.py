@@ -1031,10 +1031,9 @@ def _lid_only(points, rest, ctx):
     if rim is None or len(rim.outline) < c.shape_bins:
         return None
     cx, cy, r, far = rim.cx, rim.cy, rim.radius, rim.outline
-    rms = float(np.sqrt(np.mean(rim.residual ** 2)))
-    if not (c.min_radius <= r <= c.max_radius and rms <= max(0.002, 2 * sigma)
+    if not (c.min_radius <= r <= c.max_radius and rim.rms <= max(0.002, 2 * sigma)
             and g.facet_ratio(far, cx, cy, r - 0.5 * rim.spacing) >= s.max_facet_ratio
-            and g.arc_coverage(far[np.abs(rim.residual) <= r_eps], cx, cy) >= s.lid_arc
+            and rim.arc(r_eps) >= s.lid_arc
             and np.mean(np.hypot(lid[:, 0] - cx, lid[:, 1] - cy) <= r + r_eps) >= 0.95):
         return None
     if any(not other.lying and np.hypot(*(other.center_plane - (cx, cy))) < r + other.radius for other in ctx.found):
@@ -1052,7 +1051,7 @@ def _lid_only(points, rest, ctx):
         return None
     mine = rest[(dist <= r + r_eps) & (z <= z_lid + s.band_height)]
     return Can(T_sensor_from_can=g.can_pose(ctx.T_sensor_from_plane, cx, cy, 0.0), radius=r, height=z_lid,
-               rms_error=rms, arc_coverage=g.arc_coverage(pts[side, :2], cx, cy) if side.any() else 0.0,
+               rms_error=rim.rms, arc_coverage=g.arc_coverage(pts[side, :2], cx, cy) if side.any() else 0.0,
                n_points=len(mine), n_fit_points=int(np.count_nonzero(np.abs(rim.residual) <= r_eps)),
                center_plane=np.array([cx, cy]),
                shape_error=g.shape_error(far, cx, cy, r - 0.5 * rim.spacing, c.shape_bins),

@@ -595,6 +595,15 @@ class RimCircle:
     residual: np.ndarray
     spacing: float
 
+    @property
+    def rms(self):
+        """RMS of the outline's residuals (m)."""
+        return float(np.sqrt(np.mean(self.residual ** 2)))
+
+    def arc(self, r_eps):
+        """The angle (rad) the outline points within r_eps (m) of the circle span around it."""
+        return arc_coverage(self.outline[np.abs(self.residual) <= r_eps], self.cx, self.cy)
+
 
 def rim_circle(disc_xy, sensor_xy, r_eps, sectors=36):
     """The circle of the rim of a disc of points seen from above (a can's lid), from its outline on

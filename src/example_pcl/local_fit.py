@@ -254,12 +254,11 @@ def _refit_lid(points, indices, T_sensor_from_plane, sensor_plane, can, top, sig
     rim = g.rim_circle(lid, sensor_plane[:2], r_eps)
     if rim is None or abs(rim.radius - can.radius) > c.max_radius_change:
         raise PerceptionError("its lid's rim fits no circle of its radius")
-    rms = float(np.sqrt(np.mean(rim.residual ** 2)))
-    arc = g.arc_coverage(rim.outline[np.abs(rim.residual) <= r_eps], rim.cx, rim.cy)
-    if rms > max(0.002, 2 * sigma) or arc < a.cylinders.lid_arc:
-        raise PerceptionError(f"its lid's rim: rms {1e3 * rms:.2f} mm, seen over {arc:.2f} rad")
+    arc = rim.arc(r_eps)
+    if rim.rms > max(0.002, 2 * sigma) or arc < a.cylinders.lid_arc:
+        raise PerceptionError(f"its lid's rim: rms {1e3 * rim.rms:.2f} mm, seen over {arc:.2f} rad")
     return dataclasses.replace(can, T_sensor_from_can=g.can_pose(T_sensor_from_plane, rim.cx, rim.cy, can.support_height),
-                               radius=rim.radius, rms_error=rms, n_points=len(points), n_fit_points=len(rim.outline),
+                               radius=rim.radius, rms_error=rim.rms, n_points=len(points), n_fit_points=len(rim.outline),
                                center_plane=np.array([rim.cx, rim.cy]), indices=indices)
 
 
