@@ -774,8 +774,9 @@ def _rest_hidden(side_xy, cx, cy, r, r_eps, z_lo, z_hi, ctx, samples=13, limb=1.
         return True
     st = ctx.standing
     st = st[(st[:, 0] - cx) ** 2 + (st[:, 1] - cy) ** 2 > (r + r_eps) ** 2]
-    return all(_hidden(np.column_stack([cx + r * np.cos(unseen), cy + r * np.sin(unseen), np.full(len(unseen), z)]),
-                       st, ctx, cone).all() for z in (z_lo, z_hi))
+    ring = np.column_stack([cx + r * np.cos(unseen), cy + r * np.sin(unseen)])
+    q = np.vstack([np.column_stack([ring, np.full(len(unseen), z)]) for z in (z_lo, z_hi)])
+    return bool(_hidden(q, st, ctx, cone).all())
 
 
 def _hidden(q, occluders, ctx, cone=0.01):
@@ -1025,7 +1026,14 @@ def _lid_only(points, rest, ctx):
     sigma = _sigma(ctx, pts[high].mean(axis=0))
     r_eps = max(c.r_eps, c.r_eps_sigmas * sigma)
     lid = pts[np.abs(z - z_lid) <= max(0.005, 3 * sigma)]
-    if len(lid) < c.min_fit_points:
+    # Wider than a can seen from above (a tin's, a box's top): no lid of one.
+    if len(lid) < c.min_fit_points or np.any(np.ptp(lid[:, :2], axis=0) > 2 * (c.max_radius + r_eps)):
+        return None
+    # Most of what stands under it seen more than min_can_height down (a box's, a bowl's side): the
+    # rounds judged that side (the same test as on the side below, before the costlier rim).
+    low, high = lid[:, :2].min(axis=0) - r_eps, lid[:, :2].max(axis=0) + r_eps
+    column = np.all((pts[:, :2] >= low) & (pts[:, :2] <= high), axis=1)
+    if np.count_nonzero(column & (z < z_lid - c.min_can_height)) > 0.2 * np.count_nonzero(column):
         return None
     rim = g.rim_circle(lid, ctx.sensor[:2], r_eps)
     if rim is None or len(rim.outline) < c.shape_bins:

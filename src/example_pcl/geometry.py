@@ -575,7 +575,9 @@ def facet_ratio(xy, cx, cy, radius):
         if len(half) < 3:
             return float("nan")
         centred = half - half.mean(axis=0)
-        line = np.sqrt(max(np.linalg.eigvalsh(centred.T @ centred / len(half))[0], 0.0))
+        # The smaller eigenvalue of the 2 x 2 covariance: the mean squared distance to the best line.
+        a, b, c = np.mean(centred[:, 0] ** 2), np.mean(centred[:, 0] * centred[:, 1]), np.mean(centred[:, 1] ** 2)
+        line = np.sqrt(max(0.5 * (a + c) - np.hypot(0.5 * (a - c), b), 0.0))
         circle = np.sqrt(np.mean((np.hypot(half[:, 0] - cx, half[:, 1] - cy) - radius) ** 2))
         ratio = max(ratio, line / circle if circle > 0 else np.inf)
     return float(ratio)
@@ -627,10 +629,11 @@ def rim_circle(disc_xy, sensor_xy, r_eps, sectors=36):
     if not np.isfinite(r):
         return None
     try:
-        cx, cy, r, _ = fit_circle_robust(outline, (cx, cy), r, r_eps)
+        # A few iterations do: the outline holds 36 points at most.
+        cx, cy, r, _ = fit_circle_robust(outline, (cx, cy), r, r_eps, max_iterations=5, tol=1e-5)
     except PerceptionError:
         return None
-    probe = xy[:: max(1, len(xy) // 64)]
+    probe = xy[:: max(1, len(xy) // 16)]
     gaps = np.hypot(probe[:, None, 0] - xy[None, :, 0], probe[:, None, 1] - xy[None, :, 1])
     spacing = float(np.median(np.where(gaps > 0, gaps, np.inf).min(axis=1)))
     spacing = spacing if np.isfinite(spacing) else 0.0
