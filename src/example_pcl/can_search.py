@@ -82,8 +82,9 @@ class CylinderSearchConfig:
     table_gap: a base this close above min_height stands on the table; support_reach: a
     supporting surface is looked for this far around the can; occluder_reach: an object hiding
     the base is looked for this far in front. open_depth: a hollow cylinder shows points this far
-    below its rim, a handle (not a lid's lip) this far below the top; max_open_fraction: of the circle's near-half points within open_window below the
-    rim, the far-half (or deep inside) ones an open top shows at least. handle_reach: a handle
+    below its rim, a handle (not a lid's lip) this far below the top; max_open_fraction: of the
+    circle's near-half points within open_window below the rim, the far-half (or deep inside) ones
+    an open top shows at least. handle_reach: a handle
     sticks out at most this far; max_handle_arc (rad), min_handle_points. min_hidden_arc (rad): a
     side seen over less than the criterion's min_arc but at least this is still a can when an
     object in front hides the rest; min_occluded_arc (rad): or at least this when every part of the

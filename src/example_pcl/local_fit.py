@@ -17,8 +17,8 @@ sensor frame, metres, NaN holes):
    does not count), rms residual, shape error and visible arc (the search's ``min_hidden_arc`` or
    ``min_occluded_arc`` for a can it found partly hidden), plus a radius change of at most
    ``max_radius_change``. A can whose base is hidden and whose side shows too little (the search
-   found it by its lid, behind a taller can) is refitted by its lid's rim (geometry.rim_circle). A lying can (can_search's, on its side) is refitted from the pixels of its
-   window within its radius plus ``region_margin`` of its previous axis, between its ends grown by
+   found it by its lid, behind a taller can) is refitted by its lid's rim (geometry.rim_circle).
+   A lying can (can_search's, on its side) is refitted from the pixels of its window within its radius plus ``region_margin`` of its previous axis, between its ends grown by
    ``region_margin``: Gauss-Newton on its horizontal axis and radius (lying.py) from the previous
    cylinder, then lying.judge_lying's criterion and the same radius change.
 3. **Scene changed?** On a coarse grid (every ``change_step``-th pixel), the points standing on
@@ -257,8 +257,9 @@ def _refit_lid(points, indices, T_sensor_from_plane, sensor_plane, can, top, sig
     arc = rim.arc(r_eps)
     if rim.rms > max(0.002, 2 * sigma) or arc < a.cylinders.lid_arc:
         raise PerceptionError(f"its lid's rim: rms {1e3 * rim.rms:.2f} mm, seen over {arc:.2f} rad")
-    return dataclasses.replace(can, T_sensor_from_can=g.can_pose(T_sensor_from_plane, rim.cx, rim.cy, can.support_height),
-                               radius=rim.radius, rms_error=rim.rms, n_points=len(points), n_fit_points=len(rim.outline),
+    T_can = g.can_pose(T_sensor_from_plane, rim.cx, rim.cy, can.support_height)
+    return dataclasses.replace(can, T_sensor_from_can=T_can, radius=rim.radius, rms_error=rim.rms,
+                               n_points=len(points), n_fit_points=len(rim.outline),
                                center_plane=np.array([rim.cx, rim.cy]), indices=indices)
 
 

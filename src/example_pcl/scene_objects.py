@@ -342,12 +342,13 @@ def _cluttered(rng):
             return Obj(kind, 0.0, 0.0, radius=float(rng.uniform(0.03, 0.045)), height=float(rng.uniform(0.07, 0.11)),
                        yaw=float(rng.uniform(0, 2 * np.pi)))
         if kind == "bowl":
-            return Obj("bowl", 0.0, 0.0, radius=float(rng.uniform(0.06, 0.08)), height=float(rng.uniform(0.05, 0.07)))
+            return Obj("bowl", 0.0, 0.0, radius=float(rng.uniform(0.06, 0.08)),
+                       height=float(rng.uniform(0.05, 0.07)))
         if kind == "tin":
             return Obj("tin", 0.0, 0.0, radius=float(rng.uniform(0.09, 0.11)), height=float(rng.uniform(0.05, 0.08)))
         if kind == "prism":
-            return Obj("prism", 0.0, 0.0, radius=float(rng.uniform(0.03, 0.05)), height=float(rng.uniform(0.08, 0.15)),
-                       yaw=float(rng.uniform(0, 2 * np.pi)))
+            return Obj("prism", 0.0, 0.0, radius=float(rng.uniform(0.03, 0.05)),
+                       height=float(rng.uniform(0.08, 0.15)), yaw=float(rng.uniform(0, 2 * np.pi)))
         return Obj("box", 0.0, 0.0, size=(float(rng.uniform(0.04, 0.14)), float(rng.uniform(0.04, 0.12)),
                                           float(rng.uniform(0.04, 0.2))), yaw=float(rng.uniform(0, np.pi)))
 
@@ -365,7 +366,8 @@ def _cluttered(rng):
         for _ in range(50):
             if placed and rng.random() < 0.5:
                 near = placed[int(rng.integers(len(placed)))]
-                d, a = footprint(near) + footprint(obj) + float(rng.uniform(0.001, 0.015)), float(rng.uniform(0, 2 * np.pi))
+                d = footprint(near) + footprint(obj) + float(rng.uniform(0.001, 0.015))
+                a = float(rng.uniform(0, 2 * np.pi))
                 obj.x, obj.y = near.x + d * np.cos(a), near.y + d * np.sin(a)
             else:
                 obj.x, obj.y = float(rng.uniform(-0.25, 0.25)), float(rng.uniform(-0.15, 0.2))
