@@ -831,28 +831,25 @@ def _handle(points, cx, cy, dist, r, r_eps, base, top, ctx):
     reaching down to the support or above the top (a box or can touching it stands on the table or
     is taller)."""
     s = ctx.search
-    z = points[:, 2]
+    # Whether it reaches further is judged on every point standing on the table around it too, not
+    # only the cluster's free ones: a cup touching the can, rejected before it, took its points with
+    # it ("cluttered table", development seed 14: its lower part hidden, it was the can's "handle").
+    st = ctx.standing
+    st = st[(np.abs(st[:, 0] - cx) <= r + 2 * s.handle_reach) & (np.abs(st[:, 1] - cy) <= r + 2 * s.handle_reach)]
+    around = np.concatenate([points, st])
+    own = np.arange(len(around)) < len(points)
+    z, dist = around[:, 2], np.concatenate([dist, np.hypot(st[:, 0] - cx, st[:, 1] - cy)])
     out = (dist > r + 2 * r_eps) & (dist <= r + s.handle_reach)
-    mid = out & (z > base + 0.01) & (z < top - 0.005)
+    mid = own & out & (z > base + 0.01) & (z < top - 0.005)
     # A handle reaches further down than a lid's lip or a rim wider than the side (learn43's coffee
     # canister: its lid's lip 10-14 mm out, 8-14 mm below the top, was a "handle" at one grid offset).
     if mid.sum() < s.min_handle_points or np.count_nonzero(mid & (z < top - s.open_depth)) < s.min_handle_points:
         return ""
-    angle = np.arctan2(points[:, 1] - cy, points[:, 0] - cx)
+    angle = np.arctan2(around[:, 1] - cy, around[:, 0] - cx)
     order, arc = g.angular_order(angle[mid])
     if arc > s.max_handle_arc:
         return ""
     start = angle[mid][order[0]]
-    # Whether it reaches further is judged on every point standing on the table, not only the
-    # cluster's free ones: a cup touching the can, rejected before it, took its points with it
-    # ("cluttered table", development seed 14: its lower part hidden, it was the can's "handle").
-    st = ctx.standing
-    st = st[(np.abs(st[:, 0] - cx) <= r + 2 * s.handle_reach) & (np.abs(st[:, 1] - cy) <= r + 2 * s.handle_reach)]
-    around = np.concatenate([points, st])
-    z, dist = around[:, 2], np.concatenate([dist, np.hypot(st[:, 0] - cx, st[:, 1] - cy)])
-    out = (dist > r + 2 * r_eps) & (dist <= r + s.handle_reach)
-    mid = np.concatenate([mid, np.zeros(len(st), bool)])
-    angle = np.arctan2(around[:, 1] - cy, around[:, 0] - cx)
     span = (angle - start) % (2 * np.pi) <= arc + 1e-9
     beyond = (dist > r + s.handle_reach) & (dist <= r + 2 * s.handle_reach)
     if (out & span & ((z <= base + 0.01) | (z >= top + 0.005))).any() or (beyond & span).sum() >= s.min_handle_points:
@@ -1026,23 +1023,22 @@ def _lid_only(points, rest, ctx):
     z_lid = float(np.median(z[np.abs(band - fullest) <= 1]))
     sigma = _sigma(ctx, pts[high].mean(axis=0))
     r_eps = max(c.r_eps, c.r_eps_sigmas * sigma)
-    lid = pts[np.abs(z - z_lid) <= max(0.005, 3 * sigma)]
+    lid = lid_points(pts, z_lid, sigma)
     # Wider than a can seen from above (a tin's, a box's top): no lid of one.
     if len(lid) < c.min_fit_points or np.any(np.ptp(lid[:, :2], axis=0) > 2 * (c.max_radius + r_eps)):
         return None
     # Most of what stands under it seen more than min_can_height down (a box's, a bowl's side): the
     # rounds judged that side (the same test as on the side below, before the costlier rim).
-    low, high = lid[:, :2].min(axis=0) - r_eps, lid[:, :2].max(axis=0) + r_eps
-    column = np.all((pts[:, :2] >= low) & (pts[:, :2] <= high), axis=1)
+    corner_lo, corner_hi = lid[:, :2].min(axis=0) - r_eps, lid[:, :2].max(axis=0) + r_eps
+    column = np.all((pts[:, :2] >= corner_lo) & (pts[:, :2] <= corner_hi), axis=1)
     if np.count_nonzero(column & (z < z_lid - c.min_can_height)) > 0.2 * np.count_nonzero(column):
         return None
     rim = g.rim_circle(lid, ctx.sensor[:2], r_eps)
     if rim is None or len(rim.outline) < c.shape_bins:
         return None
     cx, cy, r, far = rim.cx, rim.cy, rim.radius, rim.outline
-    if not (c.min_radius <= r <= c.max_radius and rim.rms <= max(0.002, 2 * sigma)
+    if not (c.min_radius <= r <= c.max_radius and rim.fits(sigma, r_eps, s.lid_arc)
             and g.facet_ratio(far, cx, cy, r - 0.5 * rim.spacing) >= s.max_facet_ratio
-            and rim.arc(r_eps) >= s.lid_arc
             and np.mean(np.hypot(lid[:, 0] - cx, lid[:, 1] - cy) <= r + r_eps) >= 0.95):
         return None
     if any(not other.lying and np.hypot(*(other.center_plane - (cx, cy))) < r + other.radius for other in ctx.found):
@@ -1053,8 +1049,8 @@ def _lid_only(points, rest, ctx):
     # r_eps), hidden below: a 4 x 4 cm box's top, its faces seen down to the table (70 % of the
     # points near the circle lower), was a lid ("boxes and prisms", development seeds 413, 417).
     hidden_below = z_lid - c.min_can_height
-    low = np.count_nonzero(z[side] < hidden_below)
-    if (low > max(s.min_band_points, 0.2 * np.count_nonzero(side))
+    n_low = np.count_nonzero(z[side] < hidden_below)
+    if (n_low > max(s.min_band_points, 0.2 * np.count_nonzero(side))
             or _open_top(pts[dist <= r + r_eps], cx, cy, r, r_eps, 0.0, z_lid, ctx)
             or not _rest_hidden(pts[side, :2], cx, cy, r, r_eps, c.min_height + 0.01, hidden_below, ctx)):
         return None
@@ -1065,6 +1061,12 @@ def _lid_only(points, rest, ctx):
                center_plane=np.array([cx, cy]),
                shape_error=g.shape_error(far, cx, cy, r - 0.5 * rim.spacing, c.shape_bins),
                indices=mine, support="table", base_seen=False, support_height=0.0)
+
+
+def lid_points(points, z_lid, sigma):
+    """The points (float (N, 3), plane frame, m) on a lid at height z_lid (m): within max(5 mm,
+    3 sigma) of it (sigma: the depth noise there, m)."""
+    return points[np.abs(points[:, 2] - z_lid) <= max(0.005, 3 * sigma)]
 
 
 def _lying(points, rest, ctx):

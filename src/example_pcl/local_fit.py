@@ -18,7 +18,8 @@ sensor frame, metres, NaN holes):
    ``min_occluded_arc`` for a can it found partly hidden), plus a radius change of at most
    ``max_radius_change``. A can whose base is hidden and whose side shows too little (the search
    found it by its lid, behind a taller can) is refitted by its lid's rim (geometry.rim_circle).
-   A lying can (can_search's, on its side) is refitted from the pixels of its window within its radius plus ``region_margin`` of its previous axis, between its ends grown by
+   A lying can (can_search's, on its side) is refitted from the pixels of its window within its
+   radius plus ``region_margin`` of its previous axis, between its ends grown by
    ``region_margin``: Gauss-Newton on its horizontal axis and radius (lying.py) from the previous
    cylinder, then lying.judge_lying's criterion and the same radius change.
 3. **Scene changed?** On a coarse grid (every ``change_step``-th pixel), the points standing on
@@ -47,6 +48,7 @@ from scipy import ndimage
 
 from example_pcl import _native
 from example_pcl import auto_finder as af
+from example_pcl import can_search
 from example_pcl import geometry as g
 from example_pcl import lying
 from example_pcl import transforms
@@ -248,15 +250,14 @@ def _refit_lid(points, indices, T_sensor_from_plane, sensor_plane, can, top, sig
     points within max(5 mm, 3 sigma) of its top; plane frame, m): the search's criterion for a can
     seen by its lid (can_search._lid_only) on rms and the rim's arc, and the radius change."""
     c, a = config, config.auto
-    lid = points[np.abs(points[:, 2] - top) <= max(0.005, 3 * sigma)]
+    lid = can_search.lid_points(points, top, sigma)
     if len(lid) < a.min_fit_points:
         raise PerceptionError(f"{len(lid)} side or lid point(s) where the can was (min {a.min_fit_points})")
     rim = g.rim_circle(lid, sensor_plane[:2], r_eps)
     if rim is None or abs(rim.radius - can.radius) > c.max_radius_change:
         raise PerceptionError("its lid's rim fits no circle of its radius")
-    arc = rim.arc(r_eps)
-    if rim.rms > max(0.002, 2 * sigma) or arc < a.cylinders.lid_arc:
-        raise PerceptionError(f"its lid's rim: rms {1e3 * rim.rms:.2f} mm, seen over {arc:.2f} rad")
+    if not rim.fits(sigma, r_eps, a.cylinders.lid_arc):
+        raise PerceptionError(f"its lid's rim: rms {1e3 * rim.rms:.2f} mm, seen over {rim.arc(r_eps):.2f} rad")
     T_can = g.can_pose(T_sensor_from_plane, rim.cx, rim.cy, can.support_height)
     return dataclasses.replace(can, T_sensor_from_can=T_can, radius=rim.radius, rms_error=rim.rms,
                                n_points=len(points), n_fit_points=len(rim.outline),
