@@ -17,8 +17,8 @@ and the middle of the axis within the match distance horizontally: 15 mm generat
 the median of both errors; a real lying can's truth is the middle of its labelled points' spans along
 and across their principal direction seen from above), median centre error (mm, horizontal,
 against the truth's axis), median top error (mm, generated upright cans: the found top's height
-against the truth's, where a gripper closes on a can from above) and time per frame (median / p90 ms, real scenes; each scene searched
-`--repeats` times, the two finders alternately). Prints a markdown table and writes it into
+against the truth's, where a gripper closes on a can from above) and time per frame (median / p90
+ms, real scenes; each scene searched `--repeats` times, the two finders alternately). Prints a markdown table and writes it into
 docs/can_search.md between <!-- bench:cans --> markers.
 """
 import argparse
@@ -86,16 +86,16 @@ def score(tally, found_cans, true_cans, true_lying, to_plane, match):
             hits = [(np.linalg.norm(mid[:2] - t["center"][:2]), k) for k, t in enumerate(true_lying)
                     if k not in used_lying and abs(axis @ t["axis"]) >= np.cos(LYING_ANGLE)]
             error, k = min(hits) if hits else (np.inf, -1)
-            if error < match and true_lying[k].get("hidden"):
-                used_lying.add(k)
-                tally.hidden_found += 1
-            elif error < match:
-                used_lying.add(k)
-                tally.lying += 1
-                tally.lying_errors.append(error)
-                tally.lying_angles.append(np.arccos(min(1.0, abs(axis @ true_lying[k]["axis"]))))
-            else:
+            if error >= match:
                 tally.false += 1
+                continue
+            used_lying.add(k)
+            if true_lying[k].get("hidden"):
+                tally.hidden_found += 1
+                continue
+            tally.lying += 1
+            tally.lying_errors.append(error)
+            tally.lying_angles.append(np.arccos(min(1.0, abs(axis @ true_lying[k]["axis"]))))
             continue
         axis = transforms.apply(to_plane, can.base_center + can.axis) - base
         # where the found axis meets the truth's base height
