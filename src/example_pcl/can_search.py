@@ -78,8 +78,9 @@ class CylinderSearchConfig:
     fit_points: at most this many side points (evenly subsampled) go into the Levenberg-Marquardt
     fit; max_rounds: per cluster. retries,
     retry_verify: when no circle verified in a round makes progress, up to `retries` more draws from
-    the pool points the circles tried did not explain, verifying the best retry_verify of each (a
-    big box's faces crowd a small can's triplets out of the first draw).
+    the pool points the circles tried did not explain (a big box's faces crowd a small can's
+    triplets out of the first draw), with the first draw's circles unlike those tried, verifying
+    the best retry_verify of each.
     band_height, band_fraction, min_band_points, max_band_gap (bands): the growth along the axis.
     table_gap: a base this close above min_height stands on the table; support_reach: a
     supporting surface is looked for this far around the can; occluder_reach: an object hiding
@@ -912,6 +913,16 @@ def _wall_sample(points, n, cell, rng):
     return np.sort(rng.choice(len(points), size=n, replace=False, p=weight / weight.sum()))
 
 
+def _like_any(circles, others, eps):
+    """Which of the circles (cx, cy, r: (K,) each, m) have centre and radius within eps (m) of one of
+    the others ((cx, cy, r) each)."""
+    cx, cy, r = circles
+    like = np.zeros(len(cx), bool)
+    for ox, oy, o_r in others:
+        like |= (np.hypot(cx - ox, cy - oy) <= eps) & (np.abs(r - o_r) <= eps)
+    return like
+
+
 def search_cluster(points, ctx):
     """Every can in one cluster: (list of Can with indices into `points`, list of Rejection).
 
@@ -939,6 +950,7 @@ def search_cluster(points, ctx):
         r_eps = max(c.r_eps, c.r_eps_sigmas * sigma)
         z_pool = this_round.z[pool]
         progress, tried = False, np.zeros(len(pool), bool)
+        tried_circles = []
         # No triplet from a box's or prism's flat faces: circles through their corners outscored a small
         # can beside a big box and took the round's verifications.
         face = flat_faces(xy, 0.5 * r_eps, s.face_span, s.face_points, ctx.rng)
@@ -949,6 +961,15 @@ def search_cluster(points, ctx):
             drawn = ~face[~tried]
             cx, cy, r, z0 = circle_hypotheses(axy[drawn], az[drawn], s.hypotheses, ctx.rng, c.min_radius,
                                               c.max_radius + r_eps, s.hypothesis_slice)
+            if attempt == 0:
+                first = (cx, cy, r, z0)
+            else:
+                # And the first draw's circles unlike those tried, scored on every pool point: a circle
+                # through a can's side and a box's edge took the verifications, and the can's own
+                # circles out of the first choice as sharing its points (held-out 606 "can touching box").
+                unlike = ~_like_any(first[:3], tried_circles, r_eps)
+                cx, cy, r, z0 = (np.concatenate([a[unlike], b]) for a, b in zip(first, (cx, cy, r, z0)))
+                axy, az = xy, z_pool
             best = best_circles(axy, cx, cy, r, r_eps, s.verify if attempt == 0 else s.retry_verify,
                                 sensor=ctx.sensor, z=az, lid=s.band_height)
             if not best:
@@ -977,6 +998,7 @@ def search_cluster(points, ctx):
                 if last is None:
                     last = (reason, r0)
                 tried |= np.abs(np.hypot(xy[:, 0] - cx0, xy[:, 1] - cy0) - r0) <= r_eps
+                tried_circles.append((cx0, cy0, r0))
             if progress or np.count_nonzero(~tried) < 3:
                 break
         if not progress:

