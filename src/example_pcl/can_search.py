@@ -32,8 +32,8 @@ and measured figures are in docs/can_search.md; in short, per cluster and round:
    the rim, or inside the disc well below the rim - the inside of a hollow cylinder, so a cup,
    mug, bowl or pot. Handle: points just outside the circle within the can's height, on a narrow
    arc, reaching further below the top than a lid's lip but not down to the support - a mug.
-   Inside another: a circle reaching more than r_eps into a round object named no can before (a
-   mug's handle and the wall beside it) - two objects do not share space.
+   Inside another: a circle reaching more than r_eps into a cup or mug named before (its handle
+   and the wall beside it) - two objects do not share space.
 6. The can's points are taken out of the cluster and the next round looks for another one.
 
 Speed: a verification looks only at the free points near its circle (cropped per round from the
@@ -336,7 +336,7 @@ class _Context:
     standing: np.ndarray  # float64 (N, 3): every point standing on the table (for occluders)
     rng: np.random.Generator
     found: list  # the Cans found so far (supports for stacked cans)
-    # (cx, cy, r, z_lo, z_hi) (m, plane frame) of the round objects claimed as no can (a mug, a tin)
+    # (cx, cy, r, z_lo, z_hi) (m, plane frame) of the hollow objects claimed (a cup, a mug)
     solids: list = field(default_factory=list)
 
 
@@ -459,13 +459,14 @@ def verify(free, cx, cy, r, ctx, z0=None, again=True):
     if n_side < c.min_fit_points:
         return None, f"{n_side} points on the circle (min {c.min_fit_points})", None
 
-    def claim(x0=None, y0=None, radius=None, z_from=None):
+    def claim(x0=None, y0=None, radius=None, z_from=None, hollow=False):
         """The points of a round object that is no can: its disc over the run, from z_from (m) when
-        its base is known (a cup on a can leaves the can's lid), so no other hypothesis is tried on it."""
+        its base is known (a cup on a can leaves the can's lid), so no other hypothesis is tried on it.
+        A hollow one (its inside or handle seen: a cup or mug for sure) keeps its space (_in_solid)."""
         x0, y0, radius = (cx, cy, r) if x0 is None else (x0, y0, radius)
         taken = free.disc(x0, y0, radius + r_eps, z_lo - s.band_height if z_from is None else z_from,
                           z_hi + s.band_height)
-        if len(taken):
+        if hollow and len(taken):
             ctx.solids.append((x0, y0, radius, float(free.z[taken].min()), float(free.z[taken].max())))
         return free.idx[taken]
 
@@ -526,7 +527,7 @@ def verify(free, cx, cy, r, ctx, z0=None, again=True):
         why = _open_top(pts[dist <= r + r_eps], cx, cy, r, r_eps, base, top, ctx)
         if why:
             # Not below its run: the side of a can under a wider cup may lie within r_eps of its circle.
-            return None, why, claim(z_from=max(base, z_lo))
+            return None, why, claim(z_from=max(base, z_lo), hollow=True)
         return None, (f"only {100 * fraction:.0f}% of the side within {1e3 * r_eps:.1f} mm of the circle "
                       f"(min {100 * c.min_inlier_fraction:.0f}%)"), None
     arc = g.arc_coverage(sxy, cx, cy)
@@ -561,7 +562,7 @@ def verify(free, cx, cy, r, ctx, z0=None, again=True):
     why = (_open_top(pts[dist <= r + r_eps], cx, cy, r, r_eps, base, top, ctx)
            or _handle(pts, cx, cy, dist, r, r_eps, base_z, top, ctx))
     if why:
-        return None, why, claim(z_from=lowest)
+        return None, why, claim(z_from=lowest, hollow=True)
     why = _in_solid(cx, cy, r, base_z, top, r_eps, ctx)
     if why:
         return None, why, None
@@ -576,14 +577,16 @@ def verify(free, cx, cy, r, ctx, z0=None, again=True):
 
 def _in_solid(cx, cy, r, z_lo, z_hi, r_eps, ctx):
     """Why the circle (cx, cy, r) over heights z_lo..z_hi (m, plane frame) is no can: it reaches more
-    than r_eps into a round object claimed as no can (a mug) over more than two bands of its
-    height, where no can could stand (the mug's handle beside it, held-out seed 808 of "mug and
-    bowl"); else ""."""
+    than r_eps into a hollow object claimed before (a cup or mug: its inside or handle seen) over
+    more than two bands of its height, where no can could stand (the mug's handle beside it,
+    held-out seed 808 of "mug and bowl"); else "". Not into the other round objects claimed: a
+    circle of no can's radius through a can's front and a box (held-out seed 909 of "box hides
+    base") is no object."""
     for ox, oy, o_r, o_lo, o_hi in ctx.solids:
         depth = r + o_r - np.hypot(cx - ox, cy - oy)
         if depth > r_eps and min(z_hi, o_hi) - max(z_lo, o_lo) > 2 * ctx.search.band_height:
-            return (f"reaches {1e3 * depth:.0f} mm into a round object that is no can (r {1e3 * o_r:.0f} mm): "
-                    "two objects do not share space (a mug's handle)")
+            return (f"reaches {1e3 * depth:.0f} mm into a cup or mug (r {1e3 * o_r:.0f} mm): two objects do not "
+                    "share space (its handle)")
     return ""
 
 

@@ -712,7 +712,9 @@ def test_a_tapered_round_object_is_rejected_as_tapered_and_a_can_is_not():
                                         ("cup on can", 10), ("cup on can", 15), ("cans touching", 2),
                                         ("cans touching", 29), ("can touching box", 31),
                                         ("cans touching", 15), ("cans touching", 23), ("cans touching", 426),
-                                        ("cans touching", 443)])
+                                        ("cans touching", 443),
+                                        # held out before, looked at since
+                                        ("box hides base", 909), ("cans touching", 605)])
 def test_development_misses_are_found_where_they_stand(case, seed):
     """Every can of these generated scenes is found within 3 mm of its axis, on its support (base
     within 1 cm, height within 1.5 cm of the truth), and no other upright can is reported."""
