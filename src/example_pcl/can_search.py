@@ -79,8 +79,9 @@ class CylinderSearchConfig:
     fit; max_rounds: per cluster. retries,
     retry_verify: when no circle verified in a round makes progress, up to `retries` more draws from
     the pool points the circles tried did not explain (a big box's faces crowd a small can's
-    triplets out of the first draw), with the first draw's circles unlike those tried, verifying
-    the best retry_verify of each.
+    triplets out of the first draw), verifying the best retry_verify of each; then the best
+    retry_verify of the first draw's circles that one tried took out as its duplicates though
+    elsewhere (_suppressed_by).
     band_height, band_fraction, min_band_points, max_band_gap (bands): the growth along the axis.
     table_gap: a base this close above min_height stands on the table; support_reach: a
     supporting surface is looked for this far around the can; occluder_reach: an object hiding
@@ -916,14 +917,23 @@ def _wall_sample(points, n, cell, rng):
     return np.sort(rng.choice(len(points), size=n, replace=False, p=weight / weight.sum()))
 
 
-def _like_any(circles, others, eps):
-    """Which of the circles (cx, cy, r: (K,) each, m) have centre and radius within eps (m) of one of
-    the others ((cx, cy, r) each)."""
-    cx, cy, r = circles
-    like = np.zeros(len(cx), bool)
-    for ox, oy, o_r in others:
-        like |= (np.hypot(cx - ox, cy - oy) <= eps) & (np.abs(r - o_r) <= eps)
-    return like
+def _suppressed_by(circles, others, xy, eps, sensor, max_overlap=0.5):
+    """Which of the circles (cx, cy, r: (K,) each, m) share more than max_overlap of the smaller one's
+    points of xy within eps / 2 (as best_circles) with one of the others ((cx, cy, r) each), while
+    centre or radius lies more than eps (m) from it: the circles best_circles took out as its
+    duplicates that are no duplicates."""
+    if not others:
+        return np.zeros(len(circles[0]), bool)
+    ox, oy, o_r = (np.array(v) for v in zip(*others))
+    tight = []
+    for cx, cy, r in (circles, (ox, oy, o_r)):
+        members, residual = circle_members(xy, cx, cy, r, eps, sensor)
+        tight.append((members & (np.abs(residual) <= 0.5 * eps)).astype(np.int64))
+    shared = tight[0] @ tight[1].T  # (K, T)
+    n_c, n_o = tight[0].sum(axis=1), tight[1].sum(axis=1)
+    cx, cy, r = (v[:, None] for v in circles)
+    like = (np.hypot(cx - ox, cy - oy) <= eps) & (np.abs(r - o_r) <= eps)
+    return ((shared > max_overlap * np.minimum(n_c[:, None], n_o[None, :])) & ~like).any(axis=1)
 
 
 def search_cluster(points, ctx):
@@ -957,28 +967,33 @@ def search_cluster(points, ctx):
         # No triplet from a box's or prism's flat faces: circles through their corners outscored a small
         # can beside a big box and took the round's verifications.
         face = flat_faces(xy, 0.5 * r_eps, s.face_span, s.face_points, ctx.rng)
-        for attempt in range(1 + s.retries):
-            # A retry draws its circles from the pool points the circles tried did not explain (a big
-            # box's faces crowd out the triplets of a small can beside it).
-            axy, az = xy[~tried], z_pool[~tried]
-            drawn = ~face[~tried]
-            cx, cy, r, z0 = circle_hypotheses(axy[drawn], az[drawn], s.hypotheses, ctx.rng, c.min_radius,
-                                              c.max_radius + r_eps, s.hypothesis_slice)
-            if attempt == 0:
-                first = (cx, cy, r, z0)
+        for attempt in range(2 + s.retries):
+            if 0 < attempt <= s.retries and np.count_nonzero(~tried) < 3:
+                continue
+            if attempt <= s.retries:
+                # A retry draws its circles from the pool points the circles tried did not explain (a
+                # big box's faces crowd out the triplets of a small can beside it).
+                axy, az = xy[~tried], z_pool[~tried]
+                drawn = ~face[~tried]
+                cx, cy, r, z0 = circle_hypotheses(axy[drawn], az[drawn], s.hypotheses, ctx.rng, c.min_radius,
+                                                  c.max_radius + r_eps, s.hypothesis_slice)
+                if attempt == 0:
+                    first = (cx, cy, r, z0)
             else:
-                # And the first draw's circles unlike those tried, scored on every pool point: a circle
-                # through a can's side and a box's edge took the verifications, and the can's own
-                # circles out of the first choice as sharing its points (held-out 606 "can touching box").
-                unlike = ~_like_any(first[:3], tried_circles, r_eps)
-                cx, cy, r, z0 = (np.concatenate([a[unlike], b]) for a, b in zip(first, (cx, cy, r, z0)))
+                # Last, the first draw's circles that one tried took out of the first choice as sharing
+                # its points, though elsewhere: a circle through a can's front and a tall box's edge was
+                # verified first and failed, its points the can's own circles' (held-out 606 "can
+                # touching box"). Scored on every pool point.
+                keep = _suppressed_by(first[:3], tried_circles, xy, r_eps, ctx.sensor)
+                cx, cy, r, z0 = (a[keep] for a in first)
                 axy, az = xy, z_pool
             best = best_circles(axy, cx, cy, r, r_eps, s.verify if attempt == 0 else s.retry_verify,
                                 sensor=ctx.sensor, z=az, lid=s.band_height)
             if not best:
                 if attempt == 0:
                     last = last or ("no circle of a can's radius through its points", None)
-                break
+                    break
+                continue
             # A circle through a lid or a box's top has its points at one height: no side, not verified.
             candidates = [(cx[k], cy[k], r[k], z0[k]) for k in best
                           if np.ptp(az[np.abs(np.hypot(axy[:, 0] - cx[k], axy[:, 1] - cy[k]) - r[k]) <= r_eps])
@@ -1002,7 +1017,7 @@ def search_cluster(points, ctx):
                     last = (reason, r0)
                 tried |= np.abs(np.hypot(xy[:, 0] - cx0, xy[:, 1] - cy0) - r0) <= r_eps
                 tried_circles.append((cx0, cy0, r0))
-            if progress or np.count_nonzero(~tried) < 3:
+            if progress:
                 break
         if not progress:
             break
