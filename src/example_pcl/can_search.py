@@ -308,15 +308,12 @@ def best_circles(xy, cx, cy, r, eps, count, sensor=None, max_overlap=0.5, z=None
     # Shared: within eps / 2 of both. A circle tangent to a can's front, wider than it, shares about half
     # the can's points within eps but fewer within eps / 2; the can's own circles share most of them.
     tight = members & (np.abs(residual) <= 0.5 * eps)
-    n_tight = tight.sum(axis=1)
     taken = []
     for k in np.argsort(-quality, kind="stable"):
         if score[k] < 3:
             break
-        if taken:
-            shared = (tight[taken] & tight[k]).sum(axis=1)
-            if (shared > max_overlap * np.minimum(n_tight[taken], n_tight[k])).any():
-                continue
+        if taken and _duplicates(tight[k:k + 1], tight[taken], max_overlap).any():
+            continue
         taken.append(int(k))
         if len(taken) == count:
             break
@@ -917,23 +914,27 @@ def _wall_sample(points, n, cell, rng):
     return np.sort(rng.choice(len(points), size=n, replace=False, p=weight / weight.sum()))
 
 
+def _duplicates(tight_a, tight_b, max_overlap):
+    """(A, B) bool: circle a of tight_a and b of tight_b (bool (A, M), (B, M): which points lie within
+    eps / 2 of each) share more than max_overlap of the smaller one's points: one seen twice."""
+    a, b = tight_a.astype(np.int64), tight_b.astype(np.int64)
+    shared = a @ b.T
+    return shared > max_overlap * np.minimum(a.sum(axis=1)[:, None], b.sum(axis=1)[None, :])
+
+
 def _suppressed_by(circles, others, xy, eps, sensor, max_overlap=0.5):
-    """Which of the circles (cx, cy, r: (K,) each, m) share more than max_overlap of the smaller one's
-    points of xy within eps / 2 (as best_circles) with one of the others ((cx, cy, r) each), while
-    centre or radius lies more than eps (m) from it: the circles best_circles took out as its
-    duplicates that are no duplicates."""
+    """Which of the circles (cx, cy, r: (K,) each, m) best_circles takes out as duplicates of one of
+    the others ((cx, cy, r) each) though centre or radius lies more than eps (m) from it."""
     if not others:
         return np.zeros(len(circles[0]), bool)
     ox, oy, o_r = (np.array(v) for v in zip(*others))
     tight = []
     for cx, cy, r in (circles, (ox, oy, o_r)):
         members, residual = circle_members(xy, cx, cy, r, eps, sensor)
-        tight.append((members & (np.abs(residual) <= 0.5 * eps)).astype(np.int64))
-    shared = tight[0] @ tight[1].T  # (K, T)
-    n_c, n_o = tight[0].sum(axis=1), tight[1].sum(axis=1)
+        tight.append(members & (np.abs(residual) <= 0.5 * eps))
     cx, cy, r = (v[:, None] for v in circles)
     like = (np.hypot(cx - ox, cy - oy) <= eps) & (np.abs(r - o_r) <= eps)
-    return ((shared > max_overlap * np.minimum(n_c[:, None], n_o[None, :])) & ~like).any(axis=1)
+    return (_duplicates(tight[0], tight[1], max_overlap) & ~like).any(axis=1)
 
 
 def search_cluster(points, ctx):
