@@ -335,7 +335,7 @@ class _Context:
     rng: np.random.Generator
     found: list  # the Cans found so far (supports for stacked cans)
     # (cx, cy, r, z_lo, z_hi) (m, plane frame) of the hollow objects claimed (a cup, a mug)
-    solids: list = field(default_factory=list)
+    cups_claimed: list = field(default_factory=list)
 
 
 class _Free:
@@ -460,12 +460,12 @@ def verify(free, cx, cy, r, ctx, z0=None, again=True):
     def claim(x0=None, y0=None, radius=None, z_from=None, hollow=False):
         """The points of a round object that is no can: its disc over the run, from z_from (m) when
         its base is known (a cup on a can leaves the can's lid), so no other hypothesis is tried on it.
-        A hollow one (its inside or handle seen: a cup or mug for sure) keeps its space (_in_solid)."""
+        A hollow one (its inside or handle seen: a cup or mug for sure) keeps its space (_inside_cup)."""
         x0, y0, radius = (cx, cy, r) if x0 is None else (x0, y0, radius)
         taken = free.disc(x0, y0, radius + r_eps, z_lo - s.band_height if z_from is None else z_from,
                           z_hi + s.band_height)
         if hollow and len(taken):
-            ctx.solids.append((x0, y0, radius, float(free.z[taken].min()), float(free.z[taken].max())))
+            ctx.cups_claimed.append((x0, y0, radius, float(free.z[taken].min()), float(free.z[taken].max())))
         return free.idx[taken]
 
     # A linear (Kasa) circle first: cheap, and it already says when the radius is no can's.
@@ -561,7 +561,7 @@ def verify(free, cx, cy, r, ctx, z0=None, again=True):
            or _handle(pts, cx, cy, dist, r, r_eps, base_z, top, ctx))
     if why:
         return None, why, claim(z_from=lowest, hollow=True)
-    why = _in_solid(cx, cy, r, base_z, top, r_eps, ctx)
+    why = _inside_cup(cx, cy, r, base_z, top, r_eps, ctx)
     if why:
         return None, why, None
     mine = free.idx[near[(dist <= r + r_eps) & (z >= lowest) & (z <= top + s.band_height)]]
@@ -573,14 +573,14 @@ def verify(free, cx, cy, r, ctx, z0=None, again=True):
     return can, None, None
 
 
-def _in_solid(cx, cy, r, z_lo, z_hi, r_eps, ctx):
+def _inside_cup(cx, cy, r, z_lo, z_hi, r_eps, ctx):
     """Why the circle (cx, cy, r) over heights z_lo..z_hi (m, plane frame) is no can: it reaches more
     than r_eps into a hollow object claimed before (a cup or mug: its inside or handle seen) over
     more than two bands of its height, where no can could stand (the mug's handle beside it,
     held-out seed 808 of "mug and bowl"); else "". Not into the other round objects claimed: a
     circle of no can's radius through a can's front and a box (held-out seed 909 of "box hides
     base") is no object."""
-    for ox, oy, o_r, o_lo, o_hi in ctx.solids:
+    for ox, oy, o_r, o_lo, o_hi in ctx.cups_claimed:
         depth = r + o_r - np.hypot(cx - ox, cy - oy)
         if depth > r_eps and min(z_hi, o_hi) - max(z_lo, o_lo) > 2 * ctx.search.band_height:
             return (f"reaches {1e3 * depth:.0f} mm into a cup or mug (r {1e3 * o_r:.0f} mm): two objects do not "
