@@ -1102,7 +1102,7 @@ def _lid_only(points, rest, ctx):
         return None
     cx, cy, r, far = rim.cx, rim.cy, rim.radius, rim.outline
     if not (c.min_radius <= r <= c.max_radius and rim.fits(sigma, r_eps, s.lid_arc)
-            and g.facet_ratio(far, cx, cy, r - 0.5 * rim.spacing) >= s.max_facet_ratio
+            and g.facet_ratio(far, cx, cy, rim.outline_radius) >= s.max_facet_ratio
             and np.mean(np.hypot(lid[:, 0] - cx, lid[:, 1] - cy) <= r + r_eps) >= 0.95):
         return None
     if any(not other.lying and np.hypot(*(other.center_plane - (cx, cy))) < r + other.radius for other in ctx.found):
@@ -1123,7 +1123,7 @@ def _lid_only(points, rest, ctx):
                rms_error=rim.rms, arc_coverage=g.arc_coverage(pts[side, :2], cx, cy) if side.any() else 0.0,
                n_points=len(mine), n_fit_points=int(np.count_nonzero(np.abs(rim.residual) <= r_eps)),
                center_plane=np.array([cx, cy]),
-               shape_error=g.shape_error(far, cx, cy, r - 0.5 * rim.spacing, c.shape_bins),
+               shape_error=g.shape_error(far, cx, cy, rim.outline_radius, c.shape_bins),
                indices=mine, support="table", base_seen=False, support_height=0.0)
 
 

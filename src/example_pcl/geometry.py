@@ -598,6 +598,11 @@ class RimCircle:
     spacing: float
 
     @property
+    def outline_radius(self):
+        """The radius (m) of the circle fitted to the outline (the rim's less half the spacing)."""
+        return self.radius - 0.5 * self.spacing
+
+    @property
     def rms(self):
         """RMS of the outline's residuals (m)."""
         return float(np.sqrt(np.mean(self.residual ** 2)))

@@ -234,6 +234,14 @@ def _can(rng, x, y, z=0.0, support="table", radius=None, height=None):
     return Obj("can", x, y, z, radius=r, height=h, support=support)
 
 
+def _tin(rng, x, y):
+    return Obj("tin", x, y, radius=float(rng.uniform(0.09, 0.11)), height=float(rng.uniform(0.05, 0.08)))
+
+
+def _bowl(rng, x, y):
+    return Obj("bowl", x, y, radius=float(rng.uniform(0.06, 0.08)), height=float(rng.uniform(0.05, 0.07)))
+
+
 def case_objects(case, rng):
     """The objects of one case (list of Obj), sizes and places drawn from rng."""
     j = lambda s=0.03: float(rng.uniform(-s, s))  # noqa: E731 - a jitter
@@ -263,7 +271,7 @@ def case_objects(case, rng):
         box_h = float(rng.uniform(0.04, 0.6 * can.height))
         return [can, Obj("box", can.x + j(0.01), can.y - can.radius - 0.03 - 0.015, size=(0.16, 0.03, box_h))]
     if case == "can on tin":
-        tin = Obj("tin", j(), j(), radius=float(rng.uniform(0.09, 0.11)), height=float(rng.uniform(0.05, 0.08)))
+        tin = _tin(rng, j(), j())
         top = _can(rng, tin.x + j(0.03), tin.y + j(0.03), tin.top, "object")
         return [tin, top]
     if case == "can on box":
@@ -276,8 +284,7 @@ def case_objects(case, rng):
     if case == "mug and bowl":
         return [Obj("mug", j() - 0.12, j(), radius=float(rng.uniform(0.035, 0.045)),
                     height=float(rng.uniform(0.08, 0.11)), yaw=float(rng.uniform(0, 2 * np.pi))),
-                Obj("bowl", j() + 0.12, j(), radius=float(rng.uniform(0.06, 0.08)),
-                    height=float(rng.uniform(0.05, 0.07))),
+                _bowl(rng, j() + 0.12, j()),
                 _can(rng, j(), 0.15 + j(0.01))]
     if case == "boxes and prisms":
         return [Obj("box", -0.15 + j(), j(), size=(0.04, 0.04, float(rng.uniform(0.12, 0.2))), yaw=j(1)),
@@ -342,10 +349,9 @@ def _cluttered(rng):
             return Obj(kind, 0.0, 0.0, radius=float(rng.uniform(0.03, 0.045)), height=float(rng.uniform(0.07, 0.11)),
                        yaw=float(rng.uniform(0, 2 * np.pi)))
         if kind == "bowl":
-            return Obj("bowl", 0.0, 0.0, radius=float(rng.uniform(0.06, 0.08)),
-                       height=float(rng.uniform(0.05, 0.07)))
+            return _bowl(rng, 0.0, 0.0)
         if kind == "tin":
-            return Obj("tin", 0.0, 0.0, radius=float(rng.uniform(0.09, 0.11)), height=float(rng.uniform(0.05, 0.08)))
+            return _tin(rng, 0.0, 0.0)
         if kind == "prism":
             return Obj("prism", 0.0, 0.0, radius=float(rng.uniform(0.03, 0.05)),
                        height=float(rng.uniform(0.08, 0.15)), yaw=float(rng.uniform(0, 2 * np.pi)))
