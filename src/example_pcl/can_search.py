@@ -93,7 +93,7 @@ class CylinderSearchConfig:
     side seen over less than the criterion's min_arc but at least this is still a can when an
     object in front hides the rest; min_occluded_arc (rad): or at least this when every part of the
     side's near half not seen lies behind something closer to the sensor (_rest_hidden: a can behind
-    another, touching it).
+    another, touching it; a lying one's too, lying._rest_hidden).
     robust_k, robust_min_scale (m), min_outliers: the least-squares circle is refitted by Tukey's
     biweight (geometry.fit_circle_robust, cut-off robust_k x scale, the scale at least
     robust_min_scale) and replaced when at least min_outliers side points lie beyond the cut-off
@@ -792,31 +792,15 @@ def _rest_hidden(side_xy, cx, cy, r, r_eps, z_lo, z_hi, ctx, samples=13, limb=1.
     side near its limbs is seen at a grazing angle, often not at all); hidden: a standing point
     outside the disc within `cone` (rad) of the sensor's ray to the sample and at least 1 cm nearer."""
     front = _toward_sensor(cx, cy, ctx)
-    theta = np.arctan2(front[1], front[0]) + np.linspace(-limb, limb, samples)
-    seen_angle = np.arctan2(side_xy[:, 1] - cy, side_xy[:, 0] - cx)
-    gap = np.abs((seen_angle[None, :] - theta[:, None] + np.pi) % (2 * np.pi) - np.pi).min(axis=1, initial=np.pi)
-    unseen = theta[gap > limb / (samples - 1)]
+    unseen = g.unseen_angles(np.arctan2(side_xy[:, 1] - cy, side_xy[:, 0] - cx), np.arctan2(front[1], front[0]),
+                             limb, samples)
     if len(unseen) == 0:
         return True
     st = ctx.standing
     st = st[(st[:, 0] - cx) ** 2 + (st[:, 1] - cy) ** 2 > (r + r_eps) ** 2]
     ring = np.column_stack([cx + r * np.cos(unseen), cy + r * np.sin(unseen)])
     q = np.vstack([np.column_stack([ring, np.full(len(unseen), z)]) for z in (z_lo, z_hi)])
-    return bool(_hidden(q, st, ctx, cone).all())
-
-
-def _hidden(q, occluders, ctx, cone=0.01):
-    """Which of the places q (float (K, 3), plane frame, m) lie behind one of the occluders (float
-    (N, 3)): within `cone` (rad) of the sensor's ray to it and at least 1 cm nearer. bool (K,)."""
-    if len(occluders) == 0:
-        return np.zeros(len(q), bool)
-    rays = occluders - ctx.sensor
-    ranges = np.linalg.norm(rays, axis=1)
-    rays /= ranges[:, None]
-    q = q - ctx.sensor
-    q_range = np.linalg.norm(q, axis=1)
-    close = rays @ (q / q_range[:, None]).T >= np.cos(cone)  # (N, K)
-    return (close & (ranges[:, None] < q_range[None, :] - 0.01)).any(axis=0)
+    return bool(g.behind(q, st, ctx.sensor, cone).all())
 
 
 def _open_top(points, cx, cy, r, r_eps, base, top, ctx):
@@ -895,7 +879,7 @@ def _handle(points, cx, cy, dist, r, r_eps, base, top, ctx):
         radial = (tip[:, :2] - (cx, cy)) / dist[outer, None]
         tip[:, :2] += 0.01 * radial
         others = (dist > r + r_eps) & ~(span & (dist <= r + s.handle_reach + 2 * r_eps))
-        if np.mean(_hidden(tip, around[others], ctx)) > 0.5:
+        if np.mean(g.behind(tip, around[others], ctx.sensor)) > 0.5:
             return ""
     return (f"handle: {int(mid.sum())} points stick out of the side over {arc:.2f} rad without reaching the "
             "support (a mug)")
@@ -1140,7 +1124,8 @@ def _lying(points, rest, ctx):
     c = ctx.config
     pts = points[rest]
     sigma = _sigma(ctx, pts.mean(axis=0))
-    found, why = lying.lying_cans(pts, max(c.r_eps, c.r_eps_sigmas * sigma), sigma, c, ctx.search, ctx.sensor)
+    found, why = lying.lying_cans(pts, max(c.r_eps, c.r_eps_sigmas * sigma), sigma, c, ctx.search, ctx.sensor,
+                                  ctx.standing)
     return [_lying_result(can, rest, ctx) for can in found], why
 
 

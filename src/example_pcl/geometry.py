@@ -376,6 +376,30 @@ def arc_coverage(xy, cx, cy):
     return _angular_span(np.arctan2(xy[:, 1] - cy, xy[:, 0] - cx))
 
 
+def unseen_angles(seen, toward, limb=1.3, samples=13):
+    """The angles (rad, float64 (K,)) among `samples` spread within `limb` of `toward` that no angle in
+    `seen` (rad, (N,)) lies within one sample spacing of: the parts of a round side's near half
+    (toward: the direction to the sensor) that show none of its points."""
+    theta = toward + np.linspace(-limb, limb, samples)
+    gap = np.abs((np.asarray(seen)[None, :] - theta[:, None] + np.pi) % (2 * np.pi) - np.pi).min(axis=1, initial=np.pi)
+    return theta[gap > limb / (samples - 1)]
+
+
+def behind(places, occluders, sensor, cone=0.01, margin=0.01):
+    """Which of the places (float (K, 3), m) lie behind one of the occluders (float (N, 3), same frame)
+    seen from the sensor ((3,), same frame): one within `cone` (rad) of the sensor's ray to it and at
+    least `margin` (m) nearer. bool (K,)."""
+    if len(occluders) == 0:
+        return np.zeros(len(places), bool)
+    rays = occluders - sensor
+    ranges = np.linalg.norm(rays, axis=1)
+    rays /= ranges[:, None]
+    q = places - sensor
+    q_range = np.linalg.norm(q, axis=1)
+    close = rays @ (q / q_range[:, None]).T >= np.cos(cone)  # (N, K)
+    return (close & (ranges[:, None] < q_range[None, :] - margin)).any(axis=0)
+
+
 def _angular_span(angle):
     """2 pi minus the widest gap between angles (rad, any order): 0 for fewer than 2."""
     return angular_order(angle)[1] if len(angle) >= 2 else 0.0

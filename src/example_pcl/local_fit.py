@@ -307,7 +307,9 @@ def _refit_lying(pts, T_sensor_from_plane, T_plane_from_sensor, sensor_plane, ca
     s = a.cylinders
     fit = lying.refine_lying_cylinder(points, start, u, can.radius, r_eps, a.max_radius, s.lying_gap + 3 * sigma,
                                       a.fit_iterations, c.max_fit_points, sensor_plane)
-    found, why = lying.judge_lying(points, fit, r_eps, sigma, a, s, sensor_plane)
+    # A can the search found with less of its side seen (behind another) keeps the search's lower bound.
+    min_arc = a.min_arc if can.arc_coverage >= a.min_arc else s.min_occluded_arc
+    found, why = lying.judge_lying(points, fit, r_eps, sigma, a, s, sensor_plane, min_arc=min_arc)
     if found is None:
         raise PerceptionError(why)
     if abs(found.fit.radius - can.radius) > c.max_radius_change:

@@ -129,8 +129,9 @@ def fit_lying_cylinders(points, r_eps, min_radius, max_radius, max_gap, directio
     at least band_fraction of the fullest band's points on it and no more inside: not a neighbour's
     top) is kept (the fit's extent), refitted on it, and refitted again without the slabs of r_eps
     at its ends. With the sensor ((x, y, z), plane frame, m) given, only the points on a cylinder's
-    half facing it count (_facing). At most max_points points (evenly subsampled) are used; rms and
-    n_inliers are theirs."""
+    half facing it count (_facing). At most max_points points (evenly subsampled) are fitted; rms and
+    n_inliers are theirs. The run along the axis is counted on all the points."""
+    every = points
     points, origin, q, z, sq = _centred(points, max_points, sensor)
     if len(points) < 3:
         return []
@@ -157,8 +158,10 @@ def fit_lying_cylinders(points, r_eps, min_radius, max_radius, max_gap, directio
         # No can's radius, or not on the table: the refits below would not make it one.
         if fit is None or not min_radius <= fit[3] <= max_radius or abs(fit[2] - fit[3]) > max_gap:
             continue
-        # Only the part of the axis the circle explains: not a neighbour's face beyond its end.
-        run = _explained(q, z, fit, r_eps, sq, band, band_fraction, min_band_points, max_band_gap)
+        # Only the part of the axis the circle explains: not a neighbour's face beyond its end. Counted
+        # on every point: a stride through the raster leaves some bands nearly empty.
+        run = _explained(every[:, :2] - origin, every[:, 2], fit, r_eps, sq, band, band_fraction, min_band_points,
+                         max_band_gap)
         if run is None:
             continue
         fits.append(_without_ends(q, z, origin, fit, r_eps, iterations, max_radius, max_gap, sq, run, band))
@@ -408,7 +411,7 @@ class LyingCan:
     rims: np.ndarray
 
 
-def lying_cans(points, r_eps, sigma, config, search, sensor=None):
+def lying_cans(points, r_eps, sigma, config, search, sensor=None, occluders=None):
     """Every lying can among points (float64 (N, 3), plane frame, m), which may hold other objects
     touching them: (list of LyingCan, each one's masks over `points`; why the rest is no lying can).
 
@@ -417,7 +420,7 @@ def lying_cans(points, r_eps, sigma, config, search, sensor=None):
     found, why = [], ""
     while np.count_nonzero(free) >= config.min_fit_points and len(found) < search.max_rounds:
         idx = np.flatnonzero(free)
-        can, why = lying_can(points[idx], r_eps, sigma, config, search, sensor)
+        can, why = lying_can(points[idx], r_eps, sigma, config, search, sensor, occluders)
         if can is None:
             break
         inliers, mine, rims = (np.zeros(len(points), bool) for _ in range(3))
@@ -427,15 +430,17 @@ def lying_cans(points, r_eps, sigma, config, search, sensor=None):
     return found, why
 
 
-def lying_can(points, r_eps, sigma, config, search, sensor=None):
+def lying_can(points, r_eps, sigma, config, search, sensor=None, occluders=None):
     """A lying can among points (float64 (N, 3), plane frame, m): (LyingCan, "") or (None, why not).
 
     r_eps: inlier distance (m); sigma: depth noise there (m); config: auto_finder.AutoConfig (radius
     range, inlier fraction, rms, shape error, arc, min_can_height as the least length); search:
     can_search.CylinderSearchConfig (lying_gap, lying_directions, fit_points, the bands along the
     axis, max_taper, taper_sigmas); sensor: (x, y, z), plane frame (m), or None: only the points on
-    a cylinder's half facing it are its side (_facing). The distinct cylinders of fit_lying_cylinders are judged in turn
-    on their extent; the first that passes is the can, else the first one's reason is why not."""
+    a cylinder's half facing it are its side (_facing); occluders (float (N, 3), plane frame, m, or
+    None): every point standing on the table, what may hide part of its side (_rest_hidden). The
+    distinct cylinders of fit_lying_cylinders are judged in turn on their extent; the first that
+    passes is the can, else the first one's reason is why not."""
     c, s = config, search
     # A can on its side is at most one diameter high: the points above are another object's.
     limit = 2 * c.max_radius + s.lying_gap + 3 * sigma
@@ -451,16 +456,17 @@ def lying_can(points, r_eps, sigma, config, search, sensor=None):
         return None, "lying: no horizontal cylinder fits its points"
     why = ""
     for fit in fits:
-        can, reason = judge_lying(points, fit, r_eps, sigma, c, s, sensor)
+        can, reason = judge_lying(points, fit, r_eps, sigma, c, s, sensor, occluders)
         if can is not None:
             return can, ""
         why = why or reason
     return None, why
 
 
-def judge_lying(points, fit, r_eps, sigma, config, search, sensor=None):
+def judge_lying(points, fit, r_eps, sigma, config, search, sensor=None, occluders=None, min_arc=None):
     """fit (a LyingFit, or None: none fitted) judged as a lying can on the points of its extent, as
-    lying_can judges its own fits: (LyingCan, "") or (None, why). Arguments as lying_can's."""
+    lying_can judges its own fits: (LyingCan, "") or (None, why). Arguments as lying_can's; min_arc
+    (rad): the least arc of side seen (None: config's; the tracker keeps a hidden can's lower bound)."""
     c, s = config, search
     if fit is None:
         return None, "lying: no horizontal cylinder fits its points"
@@ -503,8 +509,11 @@ def judge_lying(points, fit, r_eps, sigma, config, search, sensor=None):
     if shape > c.max_shape_error:
         return None, f"lying: shape error {1e3 * shape:.2f} mm > {1e3 * c.max_shape_error:.2f} mm (not round)"
     arc = g.arc_coverage(section, fit.offset, fit.zc)
-    if arc < c.min_arc:
-        return None, f"lying: side seen over {arc:.2f} rad < {c.min_arc:.2f} rad"
+    min_arc = c.min_arc if min_arc is None else min_arc
+    # A can behind another, touching it, shows only the part of its side above the front one.
+    if arc < min_arc and not (arc >= s.min_occluded_arc and occluders is not None and sensor is not None
+                              and _rest_hidden(fit, lateral[side], z[side], a_lo, a_hi, r_eps, sensor, occluders)):
+        return None, f"lying: side seen over {arc:.2f} rad < {min_arc:.2f} rad"
     length = float(a_hi - a_lo)
     if length < c.min_can_height:
         return None, f"lying: {100 * length:.1f} cm long (min {100 * c.min_can_height:.1f} cm)"
@@ -514,6 +523,25 @@ def judge_lying(points, fit, r_eps, sigma, config, search, sensor=None):
     ux, uy = fit.direction
     return LyingCan(fit=fit, rms=rms, start=fit.point_on_axis(a_lo), direction=np.array([ux, uy, 0.0]), length=length,
                     inliers=side, mine=body, shape_error=shape, arc=arc, rims=rims), ""
+
+
+def _rest_hidden(fit, side_lateral, side_z, a_lo, a_hi, r_eps, sensor, occluders):
+    """Whether every part of the near half of a lying can's side (fit, its ends at the axial
+    coordinates a_lo..a_hi, m) that shows none of its side points (lateral and z coordinates) lies
+    behind one of the occluders (float (N, 3), plane frame, m) seen from the sensor ((x, y, z), plane
+    frame), next to both ends: a lying can behind another, touching it, is seen only above the front
+    one (as can_search's upright _rest_hidden)."""
+    theta = float(np.arctan2(fit.direction[1], fit.direction[0]))
+    fl, fz = _toward_sensor(theta, fit.offset, fit.zc, (sensor[0] - fit.origin[0], sensor[1] - fit.origin[1], sensor[2]))
+    unseen = g.unseen_angles(np.arctan2(side_z - fit.zc, side_lateral - fit.offset), np.arctan2(fz, fl))
+    if len(unseen) == 0:
+        return True
+    axial, _, _, rho = fit.coordinates(occluders)
+    own = (rho <= fit.radius + r_eps) & (axial >= a_lo - r_eps) & (axial <= a_hi + r_eps)
+    ux, uy = fit.direction
+    ring = fit.radius * (np.cos(unseen)[:, None] * (-uy, ux, 0.0) + np.sin(unseen)[:, None] * (0.0, 0.0, 1.0))
+    places = np.vstack([fit.point_on_axis(a) + ring for a in (a_lo + r_eps, a_hi - r_eps)])
+    return bool(g.behind(places, occluders[~own], np.asarray(sensor, float)).all())
 
 
 def _bulging(axial, rho, a_lo, length, sigma, s):

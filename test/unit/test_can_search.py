@@ -13,6 +13,7 @@ import pytest
 from example_pcl import auto_finder as af
 from example_pcl import can_search as cs
 from example_pcl import geometry as g
+from example_pcl import lying
 from example_pcl import scene as sc
 from example_pcl import scene_objects as so
 from example_pcl import transforms
@@ -408,6 +409,23 @@ def test_generated_lying_cans_touching_are_found(case, seed):
     """On the generated cases of lying cans touching a box, an upright can or each other (development
     seeds), every lying can is found (middle of its axis within 5 mm, axis within 1 degree, radius
     within 1.5 mm), every upright can too, and nothing else."""
+    assert_generated_lying_cans_found(case, seed)
+
+
+@pytest.mark.parametrize("case, seed", [("lying can touching box", 1000), ("lying cans touching", 904),
+                                        ("lying cans touching", 1007)])
+def test_held_out_lying_misses_are_found_where_they_lie(case, seed):
+    """Held-out seeds looked at since. 1000: a lying can whose end touches a box was found 3.4 cm short
+    (every 7th point of the cluster, the fit's sample, left two bands next to the box with two points
+    each, and the run of bands the circle explains ended there; counted on every point now). 904,
+    1007: a lying can behind another, touching it, seen only above the front one over 1.73 and 1.52
+    rad, less than min_arc (the rest of its near half is hidden: lying._rest_hidden). Each found as in
+    test_generated_lying_cans_touching_are_found, a can behind another's radius within 2 mm (its
+    circle seen over so short an arc is less sure)."""
+    assert_generated_lying_cans_found(case, seed, radius_tolerance=0.002)
+
+
+def assert_generated_lying_cans_found(case, seed, radius_tolerance=0.0015):
     scene = sc.generate_scene(so.case_spec(case, seed))
     to_table = transforms.invert(np.asarray(scene.truth["camera_from_table"]))
     result = af.find_cans(scene.xyz)
@@ -418,12 +436,43 @@ def test_generated_lying_cans_touching_are_found(case, seed):
         obj = Obj("lying_can", *transforms.apply(to_table, np.add(t["base_center"], 0.5 * t["height"] * np.asarray(
             t["axis"])))[:2], radius=t["radius"], height=t["height"], yaw=t["yaw"])
         errors = min((lying_pose_error(c, obj, to_table) for c in lying_cans), key=lambda e: e[0])
-        assert errors[0] < 0.005 and errors[1] < np.radians(1) and abs(errors[2]) < 0.0015, errors
+        assert errors[0] < 0.005 and errors[1] < np.radians(1) and abs(errors[2]) < radius_tolerance, errors
     upright = [t for t in scene.truth["objects"] if t["is_can"]]
     assert len(result.cans) == len(truth) + len(upright), result.message
     for t in upright:
         base = transforms.apply(to_table, t["base_center"])
         assert min(np.hypot(*(table_xy(to_table, c)[:2] - base[:2])) for c in result.cans if not c.lying) < 0.002
+
+
+def test_the_rest_of_a_lying_cans_side_is_hidden_only_behind_something_nearer():
+    """A lying can (axis along x, r 35 mm) seen from the front above only over its top, where a lying
+    can in front of it, touching it, leaves it in view: the rest of its near half is hidden behind
+    that can; not behind nothing, nor behind a can beside it along its axis; seen all over its near
+    half, nothing is left to hide."""
+    r = 0.035
+    fit = lying.LyingFit(direction=np.array([1.0, 0.0]), origin=np.zeros(2), offset=0.0, zc=r, radius=r, rms=0.0,
+                         n_inliers=0)
+    sensor = np.array([0.0, -0.8, 0.6])
+
+    def surface(lateral, axial_from, axial_to):
+        a, phi = np.meshgrid(np.arange(axial_from, axial_to, 0.002), np.linspace(0, 2 * np.pi, 120))
+        return np.column_stack([a.ravel(), lateral + r * np.cos(phi).ravel(), r + r * np.sin(phi).ravel()])
+
+    # Seen: the points of its section facing the sensor whose rays pass the front can (axis at
+    # lateral -71 mm) by more than its radius.
+    phi = np.linspace(0.0, 2 * np.pi, 361)
+    p = np.column_stack([r * np.cos(phi), r + r * np.sin(phi)])
+    ray = (sensor[1:] - p) / np.linalg.norm(sensor[1:] - p, axis=1)[:, None]
+    to_front = np.array([-0.071, r]) - p
+    facing = np.cos(phi) * ray[:, 0] + np.sin(phi) * ray[:, 1] > 0
+    seen = facing & (np.abs(to_front[:, 0] * ray[:, 1] - to_front[:, 1] * ray[:, 0]) > r)
+    assert 1.0 < np.ptp(phi[seen]) < 1.8  # less than min_arc, more than min_occluded_arc
+    top_lateral, top_z = p[seen, 0], p[seen, 1]
+    hidden = lying._rest_hidden
+    assert hidden(fit, top_lateral, top_z, -0.07, 0.07, 0.005, sensor, surface(-0.071, -0.08, 0.08))
+    assert not hidden(fit, top_lateral, top_z, -0.07, 0.07, 0.005, sensor, np.empty((0, 3)))
+    assert not hidden(fit, top_lateral, top_z, -0.07, 0.07, 0.005, sensor, surface(0.0, 0.08, 0.2))
+    assert hidden(fit, p[facing, 0], p[facing, 1], -0.07, 0.07, 0.005, sensor, np.empty((0, 3)))
 
 
 @pytest.mark.parametrize("seed", [67, 78])

@@ -650,6 +650,30 @@ def test_angular_order_starts_after_the_widest_gap_across_the_seam():
     assert np.all(np.diff(unwrapped) > 0) and unwrapped[0] == pytest.approx(0.0, abs=1e-9)
 
 
+def test_unseen_angles_are_the_samples_no_seen_angle_is_near():
+    """Seen from 0.25 to 1.25 rad, the samples within 1.2 rad of 0.5 (0.1 apart) left unseen are those
+    more than one spacing below 0.25 or above 1.25; seen all over, none; across the +-pi seam too."""
+    seen = np.linspace(0.25, 1.25, 30)
+    unseen = g.unseen_angles(seen, 0.5, limb=1.2, samples=25)
+    assert_allclose(unseen, [-0.7, -0.6, -0.5, -0.4, -0.3, -0.2, -0.1, 0.0, 0.1, 1.4, 1.5, 1.6, 1.7], atol=1e-9)
+    assert len(g.unseen_angles(np.linspace(-1.0, 2.0, 60), 0.5, limb=1.2, samples=25)) == 0
+    assert len(g.unseen_angles(np.linspace(2.5, 3.8, 40) - 2 * np.pi * (np.linspace(2.5, 3.8, 40) > np.pi), np.pi,
+                               limb=0.5, samples=11)) == 0
+    assert len(g.unseen_angles(np.array([]), 0.0)) == 13
+
+
+def test_behind_needs_an_occluder_on_the_ray_and_nearer():
+    """A place is behind an occluder on the sensor's ray to it (within the cone) at least the margin
+    nearer; not one beside the ray, nor one behind the place or just in front of it."""
+    sensor = np.array([0.0, 0.0, 1.0])
+    places = np.array([[0.0, 0.0, 0.0], [0.3, 0.0, 0.0]])
+    on_ray = np.array([[0.0, 0.0, 0.5]])
+    assert_array_equal(g.behind(places, on_ray, sensor), [True, False])
+    assert_array_equal(g.behind(places, np.array([[0.05, 0.0, 0.5]]), sensor), [False, False])
+    assert_array_equal(g.behind(places, np.array([[0.0, 0.0, -0.1], [0.0, 0.0, 0.005]]), sensor), [False, False])
+    assert_array_equal(g.behind(places, np.empty((0, 3)), sensor), [False, False])
+
+
 def test_facet_ratio_tells_a_corner_from_an_arc():
     """Noisy points over 2.4 rad of a circle: both halves curve (ratio above 1); the two faces of a
     square's corner that the circle touches: both halves straight (below 1); too few points: NaN."""
