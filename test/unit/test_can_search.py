@@ -626,8 +626,9 @@ def test_real_scenes_give_the_same_cans_at_every_grid_offset_and_mirrored(name):
     objects = json.loads(OBJECTS.read_text())["scenes"][name]
     for view, xyz, labels in views(cloud):
         result = af.find_cans(xyz, viewpoint=cloud.origin)
-        for lying, kind in ((False, "can"), (True, "lying_can")):
-            owners = sorted(np.bincount(labels.reshape(-1)[c.indices]).argmax() for c in result.cans if c.lying == lying)
+        for on_side, kind in ((False, "can"), (True, "lying_can")):
+            owners = sorted(np.bincount(labels.reshape(-1)[c.indices]).argmax() for c in result.cans
+                            if c.lying == on_side)
             assert owners == sorted(o["label"] for o in objects if o["kind"] == kind), (view, kind, result.message)
 
 
