@@ -750,7 +750,10 @@ def test_a_tapered_round_object_is_rejected_as_tapered_and_a_can_is_not():
 # behind another, touching it, seen beside the front one's silhouette over 0.86-0.93 rad only, less than
 # min_hidden_arc (cans touching 15, 23; 0 and 5 in test_can_behind_a_can_is_found). A taller can behind
 # another, its side seen only 3.0-3.9 cm above the front one's lid, was a bowl (one circle over less than
-# min_can_height) though the rest of its side is hidden (cans touching 426, 443).
+# min_can_height) though the rest of its side is hidden (cans touching 426, 443). Held out, looked at
+# since: a can seen steeply from above behind a lower object, 18 side points on the search's grid, 4 of
+# them more than min_can_height under its lid, was not hidden below by the lid rule's 20 % (now half;
+# cluttered table 1002); so was a can behind another, 12 of 33 lower (cans touching 605).
 @pytest.mark.parametrize("case, seed", [("can touching box", 2), ("can touching box", 12), ("can touching box", 28),
                                         ("can touching box", 1), ("can touching box", 47),
                                         ("can touching box", 45), ("can touching box", 57), ("can touching box", 97),
@@ -765,7 +768,8 @@ def test_a_tapered_round_object_is_rejected_as_tapered_and_a_can_is_not():
                                         ("cans touching", 15), ("cans touching", 23), ("cans touching", 426),
                                         ("cans touching", 443), ("cluttered table", 406),
                                         # held out before, looked at since
-                                        ("box hides base", 909), ("can touching box", 606)])
+                                        ("box hides base", 909), ("can touching box", 606),
+                                        ("cluttered table", 1002), ("cans touching", 605)])
 def test_development_misses_are_found_where_they_stand(case, seed):
     """Every can of these generated scenes is found within 3 mm of its axis, on its support (base
     within 1 cm, height within 1.5 cm of the truth), and no other upright can is reported."""
