@@ -200,7 +200,7 @@ def _centred(points, max_points, sensor):
     if len(points) > max_points:
         points = points[:: int(np.ceil(len(points) / max_points))]
     origin = points[:, :2].mean(axis=0) if len(points) else np.zeros(2)
-    sq = None if sensor is None else (sensor[0] - origin[0], sensor[1] - origin[1], sensor[2])
+    sq = _from_origin(sensor, origin)
     return points, origin, points[:, :2] - origin, points[:, 2], sq
 
 
@@ -215,6 +215,12 @@ def _without_ends(q, z, origin, fit, r_eps, iterations, max_radius, max_gap, sen
     t, off, zc, rad, rms, n = _refine(q, z, *fit[:4], r_eps, iterations, trimmed, max_radius, max_gap, sensor) or fit
     return LyingFit(direction=np.array([np.cos(t), np.sin(t)]), origin=origin, offset=off, zc=zc, radius=rad,
                     rms=rms, n_inliers=n, extent=extent)
+
+
+def _from_origin(sensor, origin):
+    """The sensor ((x, y, z), plane frame, m, or None) in the fits' coordinates: x and y less the
+    origin ((2,), m). A tuple, or None."""
+    return None if sensor is None else (sensor[0] - origin[0], sensor[1] - origin[1], sensor[2])
 
 
 def _on_axis(q, theta):
@@ -261,7 +267,7 @@ def _explained(q, z, fit, r_eps, sensor, band, fraction, min_points, max_gap):
 
 
 def _without_flat_end(bands, residual, diagonal, run, r_eps, min_bands=2, min_count=10, ratio=3.0, floor=1 / 3,
-                      off=0.5, min_diagonal=3):
+                      off=0.5, off_distance=0.5, min_diagonal=3):
     """The run (first, last band) without the bands at one end where no can's side is seen: a box's
     top beyond the can's end, about as high as the can, meets the circle only along a stripe near
     its top (its face toward the sensor, as wide as the can, near its side) and leaves it between.
@@ -269,15 +275,15 @@ def _without_flat_end(bands, residual, diagonal, run, r_eps, min_bands=2, min_co
     top) of the points within 3 r_eps of the circle on its facing half. Of the splits with at least
     min_bands bands and min_count points beyond, the one with the largest ratio of the rms residuals
     beyond and before it, if at least `ratio` and the rms beyond at least floor r_eps, where at least
-    `off` of the diagonal points beyond (and min_diagonal) lie more than r_eps outside the circle and
-    at most off / 2 of the rest's (a box's corner is off the circle there, a can's side on it: a
+    `off` of the diagonal points beyond (and min_diagonal) lie more than off_distance r_eps outside the
+    circle and at most off / 2 of the rest's (a box's corner is off the circle there, a can's side on it: a
     neighbour along part of the can's side scatters too, but leaves that flank on it). The bands
     next to the split scattering no more than `ratio` x the rest's rms stay (the can's last band),
     and at least min_bands must go (docs/can_search.md, "Lying cans")."""
     first, last = run
     keep = (bands >= first) & (bands <= last)
     b, sq = bands[keep] - first, residual[keep] ** 2
-    diagonal, outside = diagonal[keep], residual[keep] > r_eps
+    diagonal, outside = diagonal[keep], residual[keep] > off_distance * r_eps
     count = np.bincount(b, minlength=last - first + 1)
     band_rms = np.sqrt(np.bincount(b, sq, minlength=len(count)) / np.maximum(count, 1))
     best, split = ratio, None
@@ -484,7 +490,7 @@ def judge_lying(points, fit, r_eps, sigma, config, search, sensor=None, occluder
     # The side without the slabs of r_eps at the ends, where the ends' discs meet it.
     inner = (axial > a_lo + r_eps) & (axial < a_hi - r_eps)
     # Points near the circle on its far half are another object's (a box's face behind it).
-    sq = None if sensor is None else (sensor[0] - fit.origin[0], sensor[1] - fit.origin[1], sensor[2])
+    sq = _from_origin(sensor, fit.origin)
     mine = _facing(lateral - fit.offset, z - fit.zc, np.arctan2(fit.direction[1], fit.direction[0]), fit.offset,
                    fit.zc, sq) | (rho < r - r_eps)
     side = (np.abs(rho - r) <= r_eps) & inner & mine
@@ -532,7 +538,7 @@ def _rest_hidden(fit, side_lateral, side_z, a_lo, a_hi, r_eps, sensor, occluders
     frame), next to both ends: a lying can behind another, touching it, is seen only above the front
     one (as can_search's upright _rest_hidden)."""
     theta = float(np.arctan2(fit.direction[1], fit.direction[0]))
-    fl, fz = _toward_sensor(theta, fit.offset, fit.zc, (sensor[0] - fit.origin[0], sensor[1] - fit.origin[1], sensor[2]))
+    fl, fz = _toward_sensor(theta, fit.offset, fit.zc, _from_origin(sensor, fit.origin))
     unseen = g.unseen_angles(np.arctan2(side_z - fit.zc, side_lateral - fit.offset), np.arctan2(fz, fl))
     if len(unseen) == 0:
         return True

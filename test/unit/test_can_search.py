@@ -413,13 +413,16 @@ def test_generated_lying_cans_touching_are_found(case, seed):
 
 
 @pytest.mark.parametrize("case, seed", [("lying can touching box", 1000), ("lying cans touching", 904),
-                                        ("lying cans touching", 1007)])
+                                        ("lying cans touching", 1007), ("lying can touching box", 601)])
 def test_held_out_lying_misses_are_found_where_they_lie(case, seed):
     """Held-out seeds looked at since. 1000: a lying can whose end touches a box was found 3.4 cm short
     (every 7th point of the cluster, the fit's sample, left two bands next to the box with two points
     each, and the run of bands the circle explains ended there; counted on every point now). 904,
     1007: a lying can behind another, touching it, seen only above the front one over 1.73 and 1.52
-    rad, less than min_arc (the rest of its near half is hidden: lying._rest_hidden). Each found as in
+    rad, less than min_arc (the rest of its near half is hidden: lying._rest_hidden). 601: a box at its
+    end as wide and high as the can, its flank points 2-13 mm off the circle, 23 of 48 more than r_eps,
+    was not cut off the can's run (4.5 cm too long; the flank test counts those off by r_eps / 2 now).
+    Each found as in
     test_generated_lying_cans_touching_are_found, a can behind another's radius within 2 mm (its
     circle seen over so short an arc is less sure)."""
     assert_generated_lying_cans_found(case, seed, radius_tolerance=0.002)
