@@ -921,6 +921,31 @@ def _suppressed_by(circles, others, xy, eps, sensor, max_overlap=0.5):
     return (_duplicates(tight[0], tight[1], max_overlap) & ~like).any(axis=1)
 
 
+def _draws(xy, z_pool, face, tried, tried_circles, r_eps, ctx):
+    """A round's circle hypotheses, drawn in turn as the search asks for them: (cx, cy, r, z0, and
+    the pool points (x, y) and heights they are scored on). First from the pool points xy, z_pool
+    (m, plane frame) not on a flat face; then up to `retries` draws from the points the circles
+    tried (`tried`, a bool mask updated in place by the caller) did not explain, a big box's faces
+    crowding out a small can's triplets, skipped when fewer than 3 are left; last, the first draw's
+    circles that one tried (`tried_circles`, (cx, cy, r) each) took out of the first choice as
+    sharing its points though elsewhere (_suppressed_by: a circle through a can's front and a tall
+    box's edge verified first and failed, its points the can's own circles'; held-out 606 "can
+    touching box"), scored on every pool point."""
+    c, s = ctx.config, ctx.search
+    first = None
+    for attempt in range(1 + s.retries):
+        if attempt and np.count_nonzero(~tried) < 3:
+            continue
+        axy, az = xy[~tried], z_pool[~tried]
+        drawn = ~face[~tried]
+        circles = circle_hypotheses(axy[drawn], az[drawn], s.hypotheses, ctx.rng, c.min_radius, c.max_radius + r_eps,
+                                    s.hypothesis_slice)
+        first = circles if first is None else first
+        yield (*circles, axy, az)
+    keep = _suppressed_by(first[:3], tried_circles, xy, r_eps, ctx.sensor)
+    yield (*(a[keep] for a in first), xy, z_pool)
+
+
 def search_cluster(points, ctx):
     """Every can in one cluster: (list of Can with indices into `points`, list of Rejection).
 
@@ -952,26 +977,7 @@ def search_cluster(points, ctx):
         # No triplet from a box's or prism's flat faces: circles through their corners outscored a small
         # can beside a big box and took the round's verifications.
         face = flat_faces(xy, 0.5 * r_eps, s.face_span, s.face_points, ctx.rng)
-        for attempt in range(2 + s.retries):
-            if 0 < attempt <= s.retries and np.count_nonzero(~tried) < 3:
-                continue
-            if attempt <= s.retries:
-                # A retry draws its circles from the pool points the circles tried did not explain (a
-                # big box's faces crowd out the triplets of a small can beside it).
-                axy, az = xy[~tried], z_pool[~tried]
-                drawn = ~face[~tried]
-                cx, cy, r, z0 = circle_hypotheses(axy[drawn], az[drawn], s.hypotheses, ctx.rng, c.min_radius,
-                                                  c.max_radius + r_eps, s.hypothesis_slice)
-                if attempt == 0:
-                    first = (cx, cy, r, z0)
-            else:
-                # Last, the first draw's circles that one tried took out of the first choice as sharing
-                # its points, though elsewhere: a circle through a can's front and a tall box's edge was
-                # verified first and failed, its points the can's own circles' (held-out 606 "can
-                # touching box"). Scored on every pool point.
-                keep = _suppressed_by(first[:3], tried_circles, xy, r_eps, ctx.sensor)
-                cx, cy, r, z0 = (a[keep] for a in first)
-                axy, az = xy, z_pool
+        for attempt, (cx, cy, r, z0, axy, az) in enumerate(_draws(xy, z_pool, face, tried, tried_circles, r_eps, ctx)):
             best = best_circles(axy, cx, cy, r, r_eps, s.verify if attempt == 0 else s.retry_verify,
                                 sensor=ctx.sensor, z=az, lid=s.band_height)
             if not best:

@@ -135,6 +135,9 @@ def fit_lying_cylinders(points, r_eps, min_radius, max_radius, max_gap, directio
     points, origin, q, z, sq = _centred(points, max_points, sensor)
     if len(points) < 3:
         return []
+    # The run along the axis is counted on every point: a stride through the raster leaves some bands
+    # nearly empty.
+    q_every, z_every = every[:, :2] - origin, every[:, 2]
     theta = np.arange(directions) * np.pi / directions
     lateral = -q[:, 0][None, :] * np.sin(theta)[:, None] + q[:, 1][None, :] * np.cos(theta)[:, None]
     subsets = _subsets(q, subset_radius, seeds=8)
@@ -158,10 +161,8 @@ def fit_lying_cylinders(points, r_eps, min_radius, max_radius, max_gap, directio
         # No can's radius, or not on the table: the refits below would not make it one.
         if fit is None or not min_radius <= fit[3] <= max_radius or abs(fit[2] - fit[3]) > max_gap:
             continue
-        # Only the part of the axis the circle explains: not a neighbour's face beyond its end. Counted
-        # on every point: a stride through the raster leaves some bands nearly empty.
-        run = _explained(every[:, :2] - origin, every[:, 2], fit, r_eps, sq, band, band_fraction, min_band_points,
-                         max_band_gap)
+        # Only the part of the axis the circle explains: not a neighbour's face beyond its end.
+        run = _explained(q_every, z_every, fit, r_eps, sq, band, band_fraction, min_band_points, max_band_gap)
         if run is None:
             continue
         fits.append(_without_ends(q, z, origin, fit, r_eps, iterations, max_radius, max_gap, sq, run, band))
