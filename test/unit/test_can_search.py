@@ -422,9 +422,8 @@ def test_held_out_lying_misses_are_found_where_they_lie(case, seed):
     rad, less than min_arc (the rest of its near half is hidden: lying._rest_hidden). 601: a box at its
     end as wide and high as the can, its flank points 2-13 mm off the circle, 23 of 48 more than r_eps,
     was not cut off the can's run (4.5 cm too long; the flank test counts those off by r_eps / 2 now).
-    Each found as in
-    test_generated_lying_cans_touching_are_found, a can behind another's radius within 2 mm (its
-    circle seen over so short an arc is less sure)."""
+    Each found as in test_generated_lying_cans_touching_are_found, a can behind another's radius
+    within 2 mm (its circle seen over so short an arc is less sure)."""
     assert_generated_lying_cans_found(case, seed, radius_tolerance=0.002)
 
 
