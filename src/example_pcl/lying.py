@@ -100,14 +100,16 @@ def _subsets(xy, radius, seeds):
 
 def _distinct(members, score, count, max_overlap=0.5, scan=64):
     """Positions of up to `count` of the best-scoring hypotheses (members: bool (H, N), each one's
-    points within r_eps; score (H,), < 3 never), each sharing at most max_overlap of the smaller
-    one's points with one taken before: the same can seen from several subsets counts once."""
+    points within r_eps; score (H,): 0 never, nor one of fewer than 3 members), each sharing at most
+    max_overlap of the smaller one's points with one taken before: the same can seen from several
+    subsets counts once."""
+    size = members.sum(axis=1)
     taken = []
     for h in np.argsort(-score, kind="stable")[:scan]:
-        if score[h] < 3 or len(taken) == count:
+        if score[h] <= 0 or len(taken) == count:
             break
-        if taken and ((members[taken] & members[h]).sum(axis=1)
-                      > max_overlap * np.minimum(score[taken], score[h])).any():
+        if size[h] < 3 or (taken and ((members[taken] & members[h]).sum(axis=1)
+                                      > max_overlap * np.minimum(size[taken], size[h])).any()):
             continue
         taken.append(int(h))
     return taken
@@ -120,17 +122,19 @@ def fit_lying_cylinders(points, r_eps, min_radius, max_radius, max_gap, directio
     of a lying can and maybe other objects touching it: LyingFits, most inliers first.
 
     Circles of about a radius within [min_radius, max_radius] (m) whose centre is about one radius
-    (to within a quarter radius and 2 max_gap, m) above the table: a Kasa circle of the points
-    projected along each of `directions` axis directions over 180 degrees, for all the points and
-    for the points within subset_radius (m, seen from above) of seeds spread over them (a can's
-    own points, with little of a neighbour's). Of those that hold at least min_own of their subset
-    within r_eps, the distinct ones with most points within r_eps are refined by Gauss-Newton on
-    (theta, offset, zc, r) over the points within 2 r_eps; then only the run of `band`-long bands along the axis that the circle explains (geometry.band_run: each with
-    at least band_fraction of the fullest band's points on it and no more inside: not a neighbour's
-    top) is kept (the fit's extent), refitted on it, and refitted again without the slabs of r_eps
-    at its ends. With the sensor ((x, y, z), plane frame, m) given, only the points on a cylinder's
-    half facing it count (_facing). At most max_points points (evenly subsampled) are fitted; rms and
-    n_inliers are theirs. The run along the axis is counted on all the points."""
+    above the table (to within a quarter radius and 2 max_gap above, max_gap below, m): a Kasa
+    circle of the points projected along each of `directions` axis directions over 180 degrees, for
+    all the points and for the points within subset_radius (m, seen from above) of seeds spread over
+    them (a can's own points, with little of a neighbour's). Of those that hold at least min_own of
+    their subset within r_eps, the distinct ones whose points within r_eps lie closest to the circle
+    are refined by Gauss-Newton on (theta, offset, zc, r) over the points within 2 r_eps; then only
+    the run of `band`-long bands along the axis that the circle explains (geometry.band_run: each
+    with at least band_fraction of the fullest band's points on it and no more inside: not a
+    neighbour's top) is kept (the fit's extent), refitted on it without the slabs of r_eps at its
+    ends, and, if that turned the axis by more than a degree, the run is found again along it and
+    refitted. With the sensor ((x, y, z), plane frame, m) given, only the points on a cylinder's
+    half facing it count (_facing). At most max_points points (evenly subsampled) are fitted; rms
+    and n_inliers are theirs. The run along the axis is counted on all the points."""
     every = points
     points, origin, q, z, sq = _centred(points, max_points, sensor)
     if len(points) < 3:
@@ -142,18 +146,24 @@ def fit_lying_cylinders(points, r_eps, min_radius, max_radius, max_gap, directio
     lateral = -q[:, 0][None, :] * np.sin(theta)[:, None] + q[:, 1][None, :] * np.cos(theta)[:, None]
     subsets = _subsets(q, subset_radius, seeds=8)
     cl, cz, r = _kasa(lateral, z, subsets)  # (K, D) each
-    # Only circles of about a can's radius that about touch the table are scored and refined.
+    # Only circles of about a can's radius that about touch the table are scored and refined. Kasa fits a
+    # partial arc too small, floating above the table; one reaching under it is no can's (and a
+    # failed hypothesis still hides its duplicates).
     with np.errstate(invalid="ignore"):
         ok = np.flatnonzero((np.isfinite(r) & (r >= 0.5 * min_radius) & (r <= 1.5 * max_radius)
-                             & (np.abs(cz - r) <= 0.25 * r + 2 * max_gap)).ravel())
+                             & (cz - r <= 0.25 * r + 2 * max_gap) & (r - cz <= max_gap)).ravel())
     k_ok, d_ok = np.divmod(ok, directions)
     r_ok = r[k_ok, d_ok, None]
     rho2 = (lateral[d_ok] - cl[k_ok, d_ok, None]) ** 2 + (z - cz[k_ok, d_ok, None]) ** 2
     members = (rho2 <= (r_ok + r_eps) ** 2) & (rho2 >= np.maximum(r_ok - r_eps, 0.0) ** 2)
     # A piece of a can lies on its circle: a circle that leaves most of its subset off is none.
     own = (members & subsets[k_ok]).sum(axis=1) / np.maximum(subsets[k_ok].sum(axis=1), 1)
+    # Ranked by how close to its circle its members lie (each weighs (1 - (residual / r_eps)^2)^2), not
+    # how many: over neighbouring directions a subset's circles hold about as many points, and the one
+    # nearest the axis lets the refinement reach the can.
+    closeness = np.where(members, (1 - (np.sqrt(rho2) - r_ok) ** 2 / r_eps ** 2) ** 2, 0.0).sum(axis=1)
     fits = []
-    for h in _distinct(members, np.where(own >= min_own, members.sum(axis=1), 0), count):
+    for h in _distinct(members, np.where(own >= min_own, closeness, 0), count):
         k, d = k_ok[h], d_ok[h]
         # First on its subset (a piece of one can), then on the run of bands along the axis it explains.
         fit = _refine(q, z, theta[d], cl[k, d], cz[k, d], r[k, d], r_eps, iterations, subsets[k], max_radius, max_gap,
@@ -165,7 +175,16 @@ def fit_lying_cylinders(points, r_eps, min_radius, max_radius, max_gap, directio
         run = _explained(q_every, z_every, fit, r_eps, sq, band, band_fraction, min_band_points, max_band_gap)
         if run is None:
             continue
-        fits.append(_without_ends(q, z, origin, fit, r_eps, iterations, max_radius, max_gap, sq, run, band))
+        refit = _without_ends(q, z, origin, fit, r_eps, iterations, max_radius, max_gap, sq, run, band)
+        # A fit on a piece of the can may point a few degrees off its axis, and its circle explains a
+        # shorter run along it: once more along the refitted axis.
+        theta_refit = float(np.arctan2(refit.direction[1], refit.direction[0]))
+        if abs(np.sin(theta_refit - fit[0])) > np.sin(np.radians(1)):
+            fit = (theta_refit, refit.offset, refit.zc, refit.radius, refit.rms, refit.n_inliers)
+            again = _explained(q_every, z_every, fit, r_eps, sq, band, band_fraction, min_band_points, max_band_gap)
+            if again is not None and again != run:
+                refit = _without_ends(q, z, origin, fit, r_eps, iterations, max_radius, max_gap, sq, again, band)
+        fits.append(refit)
     return sorted(fits, key=lambda f: -f.n_inliers)
 
 

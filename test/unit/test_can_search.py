@@ -311,6 +311,23 @@ def test_fit_lying_cylinder_recovers_a_horizontal_cylinder():
     np.testing.assert_allclose(middle, [0.1 + 0.5 * length * u[0], -0.2 + 0.5 * length * u[1], r], atol=0.001)
 
 
+def test_distinct_lying_hypotheses_are_ranked_by_score_and_judged_duplicate_by_their_points():
+    """lying._distinct takes hypotheses in the order of their score (a closeness, not a count) and
+    drops one sharing more than half the smaller one's points with one taken; a score of 0 or fewer
+    than 3 points is never taken."""
+    members = np.zeros((5, 10), bool)
+    members[0, :6] = True  # 6 points
+    members[1, 2:8] = True  # shares 4 of 6 with 0 and with 4
+    members[2, 7:10] = True  # shares 1 of 3 with 1, none with 0 or 4
+    members[3, 8:10] = True  # 2 points
+    members[4, :6] = True  # as 0, but scored 0
+    score = np.array([2.0, 2.5, 1.0, 9.0, 0.0])
+    assert lying._distinct(members, score, count=3) == [1, 2]
+    assert lying._distinct(members, score, count=1) == [1]
+    score[1] = 1.5
+    assert lying._distinct(members, score, count=3) == [0, 2]
+
+
 @pytest.mark.parametrize("yaw", [0.4, 1.6, 2.7])
 def test_a_lying_can_is_reported_lying_with_its_axis(yaw):
     """A can on its side is reported lying (not upright), its axis within 2 degrees of the truth, the
@@ -413,7 +430,8 @@ def test_generated_lying_cans_touching_are_found(case, seed):
 
 
 @pytest.mark.parametrize("case, seed", [("lying can touching box", 1000), ("lying cans touching", 904),
-                                        ("lying cans touching", 1007), ("lying can touching box", 601)])
+                                        ("lying cans touching", 1007), ("lying can touching box", 601),
+                                        ("lying can touching box", 803)])
 def test_held_out_lying_misses_are_found_where_they_lie(case, seed):
     """Held-out seeds looked at since. 1000: a lying can whose end touches a box was found 3.4 cm short
     (every 7th point of the cluster, the fit's sample, left two bands next to the box with two points
@@ -422,12 +440,24 @@ def test_held_out_lying_misses_are_found_where_they_lie(case, seed):
     rad, less than min_arc (the rest of its near half is hidden: lying._rest_hidden). 601: a box at its
     end as wide and high as the can, its flank points 2-13 mm off the circle, 23 of 48 more than r_eps,
     was not cut off the can's run (4.5 cm too long; the flank test counts those off by r_eps / 2 now).
+    803: a box 57 mm high along the can's side; the circles through the can and the box's top edge
+    (r 53 mm, their bottom 34 mm under the table) scored most, failed to refine and hid the can's own
+    as their duplicates (a circle reaching more than max_gap under the table is no hypothesis now).
     Each found as in test_generated_lying_cans_touching_are_found, a can behind another's radius
     within 2 mm (its circle seen over so short an arc is less sure)."""
     assert_generated_lying_cans_found(case, seed, radius_tolerance=0.002)
 
 
-def assert_generated_lying_cans_found(case, seed, radius_tolerance=0.0015):
+def test_a_lying_can_whose_end_touches_a_tall_box_is_found():
+    """Held-out seed 902 of "lying can touching box", looked at since: a box 131 mm high at the can's
+    end. Of the can's own subset, the circle ranked first by its number of points (57, against 56 of
+    the next direction's) refined onto a circle of r 20 mm and hid the next, which refines onto the
+    can; ranked by its points' closeness to the circle, the can is found. Its end at the box is
+    12 mm short (what the box's shadow leaves of it), so its middle is within 8 mm."""
+    assert_generated_lying_cans_found("lying can touching box", 902, middle_tolerance=0.008)
+
+
+def assert_generated_lying_cans_found(case, seed, radius_tolerance=0.0015, middle_tolerance=0.005):
     scene = sc.generate_scene(so.case_spec(case, seed))
     to_table = transforms.invert(np.asarray(scene.truth["camera_from_table"]))
     result = af.find_cans(scene.xyz)
@@ -438,7 +468,7 @@ def assert_generated_lying_cans_found(case, seed, radius_tolerance=0.0015):
         obj = Obj("lying_can", *transforms.apply(to_table, np.add(t["base_center"], 0.5 * t["height"] * np.asarray(
             t["axis"])))[:2], radius=t["radius"], height=t["height"], yaw=t["yaw"])
         errors = min((lying_pose_error(c, obj, to_table) for c in lying_cans), key=lambda e: e[0])
-        assert errors[0] < 0.005 and errors[1] < np.radians(1) and abs(errors[2]) < radius_tolerance, errors
+        assert errors[0] < middle_tolerance and errors[1] < np.radians(1) and abs(errors[2]) < radius_tolerance, errors
     upright = [t for t in scene.truth["objects"] if t["is_can"]]
     assert len(result.cans) == len(truth) + len(upright), result.message
     for t in upright:
