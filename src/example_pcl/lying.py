@@ -131,10 +131,11 @@ def fit_lying_cylinders(points, r_eps, min_radius, max_radius, max_gap, directio
     the run of `band`-long bands along the axis that the circle explains (geometry.band_run: each
     with at least band_fraction of the fullest band's points on it and no more inside: not a
     neighbour's top) is kept (the fit's extent), refitted on it without the slabs of r_eps at its
-    ends, and, if that turned the axis by more than a degree, the run is found again along it and
-    refitted. With the sensor ((x, y, z), plane frame, m) given, only the points on a cylinder's
-    half facing it count (_facing). At most max_points points (evenly subsampled) are fitted; rms
-    and n_inliers are theirs. The run along the axis is counted on all the points."""
+    ends, and, if that turned the axis by more than a degree (and left a can's radius on the table),
+    the run is found again along it and refitted. With the sensor ((x, y, z), plane frame, m) given,
+    only the points on a cylinder's half facing it count (_facing). At most max_points points (evenly
+    subsampled) are fitted; rms and n_inliers are theirs. The run along the axis is counted on all
+    the points."""
     every = points
     points, origin, q, z, sq = _centred(points, max_points, sensor)
     if len(points) < 3:
@@ -161,9 +162,12 @@ def fit_lying_cylinders(points, r_eps, min_radius, max_radius, max_gap, directio
     # Ranked by how close to its circle its members lie (each weighs (1 - (residual / r_eps)^2)^2), not
     # how many: over neighbouring directions a subset's circles hold about as many points, and the one
     # nearest the axis lets the refinement reach the can.
-    closeness = np.where(members, (1 - (np.sqrt(rho2) - r_ok) ** 2 / r_eps ** 2) ** 2, 0.0).sum(axis=1)
+    score = np.zeros(len(own))
+    held = np.flatnonzero(own >= min_own)
+    weight = (1 - (np.sqrt(rho2[held]) - r_ok[held]) ** 2 / r_eps ** 2) ** 2
+    score[held] = np.where(members[held], weight, 0.0).sum(axis=1)
     fits = []
-    for h in _distinct(members, np.where(own >= min_own, closeness, 0), count):
+    for h in _distinct(members, score, count):
         k, d = k_ok[h], d_ok[h]
         # First on its subset (a piece of one can), then on the run of bands along the axis it explains.
         fit = _refine(q, z, theta[d], cl[k, d], cz[k, d], r[k, d], r_eps, iterations, subsets[k], max_radius, max_gap,
@@ -177,9 +181,11 @@ def fit_lying_cylinders(points, r_eps, min_radius, max_radius, max_gap, directio
             continue
         refit = _without_ends(q, z, origin, fit, r_eps, iterations, max_radius, max_gap, sq, run, band)
         # A fit on a piece of the can may point a few degrees off its axis, and its circle explains a
-        # shorter run along it: once more along the refitted axis.
+        # shorter run along it: once more along the refitted axis (if it can be a can's: its radius,
+        # on the table).
         theta_refit = float(np.arctan2(refit.direction[1], refit.direction[0]))
-        if abs(np.sin(theta_refit - fit[0])) > np.sin(np.radians(1)):
+        if (abs(np.sin(theta_refit - fit[0])) > np.sin(np.radians(1)) and min_radius <= refit.radius <= max_radius
+                and abs(refit.zc - refit.radius) <= max_gap):
             fit = (theta_refit, refit.offset, refit.zc, refit.radius, refit.rms, refit.n_inliers)
             again = _explained(q_every, z_every, fit, r_eps, sq, band, band_fraction, min_band_points, max_band_gap)
             if again is not None and again != run:
@@ -481,12 +487,27 @@ def lying_can(points, r_eps, sigma, config, search, sensor=None, occluders=None)
     if not fits:
         return None, "lying: no horizontal cylinder fits its points"
     why = ""
-    for fit in fits:
+    for k, fit in enumerate(fits):
         can, reason = judge_lying(points, fit, r_eps, sigma, c, s, sensor, occluders)
         if can is not None:
-            return can, ""
+            return _tighter(points, can, fits[k + 1:], r_eps, sigma, c, s, sensor, occluders), ""
         why = why or reason
     return None, why
+
+
+def _tighter(points, can, others, r_eps, sigma, config, search, sensor, occluders, ratio=2.0):
+    """can, or a shorter one of the other fits on the same side (sharing more than half its side
+    points) whose circle explains it more than `ratio` x better (rms): a box at a can's end as high
+    and as wide as it draws a circle around both, whose compromise keeps the flank test from
+    cutting it off (docs/can_search.md, "Lying cans")."""
+    for fit in others:
+        if fit.rms * ratio >= can.rms:
+            continue
+        other, _ = judge_lying(points, fit, r_eps, sigma, config, search, sensor, occluders)
+        if (other is not None and other.length < can.length and other.rms * ratio < can.rms
+                and (other.inliers & can.inliers).sum() > 0.5 * min(other.inliers.sum(), can.inliers.sum())):
+            can = other
+    return can
 
 
 def judge_lying(points, fit, r_eps, sigma, config, search, sensor=None, occluders=None, min_arc=None):
