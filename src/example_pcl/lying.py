@@ -38,6 +38,11 @@ class LyingFit:
     n_inliers: int
     extent: tuple = (-np.inf, np.inf)
 
+    @property
+    def theta(self):
+        """The axis' direction seen from above (rad, from the plane frame's x)."""
+        return float(np.arctan2(self.direction[1], self.direction[0]))
+
     def coordinates(self, points):
         """(axial, lateral, z, distance from the axis) of points (float64 (N, 3)): each (N,) (m)."""
         q = points[:, :2] - self.origin
@@ -166,6 +171,16 @@ def fit_lying_cylinders(points, r_eps, min_radius, max_radius, max_gap, directio
     held = np.flatnonzero(own >= min_own)
     weight = (1 - (np.sqrt(rho2[held]) - r_ok[held]) ** 2 / r_eps ** 2) ** 2
     score[held] = np.where(members[held], weight, 0.0).sum(axis=1)
+
+    def can_sized(fit):  # (theta, offset, zc, r, ...): a can's radius, its axis one radius above the table
+        return min_radius <= fit[3] <= max_radius and abs(fit[2] - fit[3]) <= max_gap
+
+    def explained(fit):
+        return _explained(q_every, z_every, fit, r_eps, sq, band, band_fraction, min_band_points, max_band_gap)
+
+    def without_ends(fit, run):
+        return _without_ends(q, z, origin, fit, r_eps, iterations, max_radius, max_gap, sq, run, band)
+
     fits = []
     for h in _distinct(members, score, count):
         k, d = k_ok[h], d_ok[h]
@@ -173,23 +188,20 @@ def fit_lying_cylinders(points, r_eps, min_radius, max_radius, max_gap, directio
         fit = _refine(q, z, theta[d], cl[k, d], cz[k, d], r[k, d], r_eps, iterations, subsets[k], max_radius, max_gap,
                       sq)
         # No can's radius, or not on the table: the refits below would not make it one.
-        if fit is None or not min_radius <= fit[3] <= max_radius or abs(fit[2] - fit[3]) > max_gap:
+        if fit is None or not can_sized(fit):
             continue
         # Only the part of the axis the circle explains: not a neighbour's face beyond its end.
-        run = _explained(q_every, z_every, fit, r_eps, sq, band, band_fraction, min_band_points, max_band_gap)
+        run = explained(fit)
         if run is None:
             continue
-        refit = _without_ends(q, z, origin, fit, r_eps, iterations, max_radius, max_gap, sq, run, band)
+        refit = without_ends(fit, run)
         # A fit on a piece of the can may point a few degrees off its axis, and its circle explains a
-        # shorter run along it: once more along the refitted axis (if it can be a can's: its radius,
-        # on the table).
-        theta_refit = float(np.arctan2(refit.direction[1], refit.direction[0]))
-        if (abs(np.sin(theta_refit - fit[0])) > np.sin(np.radians(1)) and min_radius <= refit.radius <= max_radius
-                and abs(refit.zc - refit.radius) <= max_gap):
-            fit = (theta_refit, refit.offset, refit.zc, refit.radius, refit.rms, refit.n_inliers)
-            again = _explained(q_every, z_every, fit, r_eps, sq, band, band_fraction, min_band_points, max_band_gap)
+        # shorter run along it: once more along the refitted axis (if it can be a can's).
+        turned = (refit.theta, refit.offset, refit.zc, refit.radius, refit.rms, refit.n_inliers)
+        if abs(np.sin(refit.theta - fit[0])) > np.sin(np.radians(1)) and can_sized(turned):
+            again = explained(turned)
             if again is not None and again != run:
-                refit = _without_ends(q, z, origin, fit, r_eps, iterations, max_radius, max_gap, sq, again, band)
+                refit = without_ends(turned, again)
         fits.append(refit)
     return sorted(fits, key=lambda f: -f.n_inliers)
 
@@ -532,8 +544,7 @@ def judge_lying(points, fit, r_eps, sigma, config, search, sensor=None, occluder
     inner = (axial > a_lo + r_eps) & (axial < a_hi - r_eps)
     # Points near the circle on its far half are another object's (a box's face behind it).
     sq = _from_origin(sensor, fit.origin)
-    mine = _facing(lateral - fit.offset, z - fit.zc, np.arctan2(fit.direction[1], fit.direction[0]), fit.offset,
-                   fit.zc, sq) | (rho < r - r_eps)
+    mine = _facing(lateral - fit.offset, z - fit.zc, fit.theta, fit.offset, fit.zc, sq) | (rho < r - r_eps)
     side = (np.abs(rho - r) <= r_eps) & inner & mine
     body = (axial >= a_lo - r_eps) & (axial <= a_hi + r_eps) & (rho <= r + r_eps) & mine
     # Its ends' discs to their rims on the far half too: the upright search does not see them
@@ -578,8 +589,7 @@ def _rest_hidden(fit, side_lateral, side_z, a_lo, a_hi, r_eps, sensor, occluders
     behind one of the occluders (float (N, 3), plane frame, m) seen from the sensor ((x, y, z), plane
     frame), next to both ends: a lying can behind another, touching it, is seen only above the front
     one (as can_search's upright _rest_hidden)."""
-    theta = float(np.arctan2(fit.direction[1], fit.direction[0]))
-    fl, fz = _toward_sensor(theta, fit.offset, fit.zc, _from_origin(sensor, fit.origin))
+    fl, fz = _toward_sensor(fit.theta, fit.offset, fit.zc, _from_origin(sensor, fit.origin))
     unseen = g.unseen_angles(np.arctan2(side_z - fit.zc, side_lateral - fit.offset), np.arctan2(fz, fl))
     if len(unseen) == 0:
         return True
