@@ -918,7 +918,8 @@ def _suppressed_by(circles, others, xy, eps, sensor, max_overlap=0.5):
         tight.append(members & (np.abs(residual) <= 0.5 * eps))
     cx, cy, r = (v[:, None] for v in circles)
     like = (np.hypot(cx - ox, cy - oy) <= eps) & (np.abs(r - o_r) <= eps)
-    return (_duplicates(tight[0], tight[1], max_overlap) & ~like).any(axis=1)
+    # Not one like a circle tried already: it shares another tried one's points too (held-out 1301).
+    return (_duplicates(tight[0], tight[1], max_overlap) & ~like).any(axis=1) & ~like.any(axis=1)
 
 
 def _draws(xy, z_pool, face, tried, tried_circles, r_eps, ctx):
