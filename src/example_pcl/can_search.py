@@ -1061,12 +1061,12 @@ def _lid_only(points, rest, ctx):
     no can took.
 
     The lid: the points within max(5 mm, 3 sigma) of the height of the fullest band at least
-    min_can_height up. The circle of its rim (geometry.rim_circle, from its outline on the half away
+    min_can_height up, without those under a point more than a band higher (a wall's). The circle of its rim (geometry.rim_circle, from its outline on the half away
     from the sensor): a can's radius, round (facet_ratio), rms within max(2 mm, 2 sigma), over at
     least lid_arc, holding 95 % of the lid's points. Then its side hidden: the points near the
     circle on its near half within min_can_height under the lid, and every part of that half that
     shows none of them behind something nearer the sensor below that (_rest_hidden); no open top,
-    no can found there."""
+    no can found there (overlapping one by more than r_eps)."""
     c, s = ctx.config, ctx.search
     pts = points[rest]
     z = pts[:, 2]
@@ -1079,6 +1079,12 @@ def _lid_only(points, rest, ctx):
     sigma = _sigma(ctx, pts[high].mean(axis=0))
     r_eps = max(c.r_eps, c.r_eps_sigmas * sigma)
     lid = lid_points(pts, z_lid, sigma)
+    # Nothing stands over a lid: a point of it with another more than a band higher at the same place
+    # (seen from above, within 5 mm) is a wall's, an object's beside or behind the can.
+    if len(lid):
+        over = pts[z > z_lid + s.band_height]
+        d2 = (lid[:, None, 0] - over[None, :, 0]) ** 2 + (lid[:, None, 1] - over[None, :, 1]) ** 2
+        lid = lid[~(d2 <= 0.005 ** 2).any(axis=1)]
     # Wider than a can seen from above (a tin's, a box's top): no lid of one.
     if len(lid) < c.min_fit_points or np.any(np.ptp(lid[:, :2], axis=0) > 2 * (c.max_radius + r_eps)):
         return None
@@ -1096,7 +1102,9 @@ def _lid_only(points, rest, ctx):
             and g.facet_ratio(far, cx, cy, rim.outline_radius) >= s.max_facet_ratio
             and np.mean(np.hypot(lid[:, 0] - cx, lid[:, 1] - cy) <= r + r_eps) >= 0.95):
         return None
-    if any(not other.lying and np.hypot(*(other.center_plane - (cx, cy))) < r + other.radius for other in ctx.found):
+    # Overlapping a can found (by more than r_eps: two touching cans' circles overlap by their fits' errors).
+    if any(not other.lying and np.hypot(*(other.center_plane - (cx, cy))) < r + other.radius - r_eps
+           for other in ctx.found):
         return None
     dist = np.hypot(pts[:, 0] - cx, pts[:, 1] - cy)
     side = (np.abs(dist - r) <= r_eps) & (z < z_lid - s.band_height) & _facing(pts[:, 0], pts[:, 1], cx, cy, r, ctx)
