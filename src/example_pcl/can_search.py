@@ -1061,9 +1061,10 @@ def _lid_only(points, rest, ctx):
     no can took.
 
     The lid: the points within max(5 mm, 3 sigma) of the height of the fullest band at least
-    min_can_height up, without those under a point more than a band higher (a wall's). The circle of its rim (geometry.rim_circle, from its outline on the half away
-    from the sensor): a can's radius, round (facet_ratio), rms within max(2 mm, 2 sigma), over at
-    least lid_arc, holding 95 % of the lid's points. Then its side hidden: the points near the
+    min_can_height up, without those under a point more than a band higher (a wall's). The circle
+    of its rim (geometry.rim_circle, from its outline on the half away from the sensor): a can's
+    radius, round (facet_ratio), rms within max(2 mm, 2 sigma), over at least lid_arc, holding 95 %
+    of the lid's points. Then its side hidden: the points near the
     circle on its near half within min_can_height under the lid, and every part of that half that
     shows none of them behind something nearer the sensor below that (_rest_hidden); no open top,
     no can found there (overlapping one by more than r_eps)."""

@@ -612,7 +612,8 @@ class RimCircle:
     """The circle of a disc's rim seen from above (rim_circle): centre (cx, cy), radius (m, plane
     frame); outline: float64 (K, 2), the outermost points on the half away from the sensor;
     residual: their distance to the circle fitted to them (m, (K,)), whose radius is the rim's less
-    half the sample spacing (m)."""
+    half the sample spacing (m); r_eps (m): the outline points within it of that circle are the rim's
+    (arc), and up to two farther inside it the ends of an arc something in front cuts short (rms)."""
 
     cx: float
     cy: float
@@ -620,6 +621,7 @@ class RimCircle:
     outline: np.ndarray
     residual: np.ndarray
     spacing: float
+    r_eps: float
 
     @property
     def outline_radius(self):
@@ -628,8 +630,12 @@ class RimCircle:
 
     @property
     def rms(self):
-        """RMS of the outline's residuals (m)."""
-        return float(np.sqrt(np.mean(self.residual ** 2)))
+        """RMS of the outline's residuals (m) less the (at most) two farthest more than r_eps inside
+        the circle: where something in front cuts the lid short, the ends of the arc seen lie inside
+        the rim (a box's corners stick out)."""
+        residual = np.sort(self.residual)
+        rim = residual[min(2, int(np.count_nonzero(residual < -self.r_eps))):]
+        return float(np.sqrt(np.mean(rim ** 2))) if len(rim) else np.inf
 
     def arc(self, r_eps):
         """The angle (rad) the outline points within r_eps (m) of the circle span around it."""
@@ -673,7 +679,7 @@ def rim_circle(disc_xy, sensor_xy, r_eps, sectors=36):
     spacing = float(np.median(np.where(gaps > 0, gaps, np.inf).min(axis=1)))
     spacing = spacing if np.isfinite(spacing) else 0.0
     residual = np.hypot(outline[:, 0] - cx, outline[:, 1] - cy) - r
-    return RimCircle(float(cx), float(cy), float(r + 0.5 * spacing), outline, residual, spacing)
+    return RimCircle(float(cx), float(cy), float(r + 0.5 * spacing), outline, residual, spacing, float(r_eps))
 
 
 def _from_start(xy, c0):
