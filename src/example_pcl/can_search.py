@@ -918,8 +918,8 @@ def _suppressed_by(circles, others, xy, eps, sensor, max_overlap=0.5):
         tight.append(members & (np.abs(residual) <= 0.5 * eps))
     cx, cy, r = (v[:, None] for v in circles)
     like = (np.hypot(cx - ox, cy - oy) <= eps) & (np.abs(r - o_r) <= eps)
-    # Not one like a circle tried already: it shares another tried one's points too (held-out 1301).
-    return (_duplicates(tight[0], tight[1], max_overlap) & ~like).any(axis=1) & ~like.any(axis=1)
+    # Not one like a circle tried already, though it shares another tried one's points (held-out 1301).
+    return _duplicates(tight[0], tight[1], max_overlap).any(axis=1) & ~like.any(axis=1)
 
 
 def _draws(xy, z_pool, face, tried, tried_circles, r_eps, ctx):
@@ -1082,10 +1082,9 @@ def _lid_only(points, rest, ctx):
     lid = lid_points(pts, z_lid, sigma)
     # Nothing stands over a lid: a point of it with another more than a band higher at the same place
     # (seen from above, within 5 mm) is a wall's, an object's beside or behind the can.
-    if len(lid):
-        over = pts[z > z_lid + s.band_height]
-        d2 = (lid[:, None, 0] - over[None, :, 0]) ** 2 + (lid[:, None, 1] - over[None, :, 1]) ** 2
-        lid = lid[~(d2 <= 0.005 ** 2).any(axis=1)]
+    over = pts[z > z_lid + s.band_height]
+    d2 = (lid[:, None, 0] - over[None, :, 0]) ** 2 + (lid[:, None, 1] - over[None, :, 1]) ** 2
+    lid = lid[~(d2 <= 0.005 ** 2).any(axis=1)]
     # Wider than a can seen from above (a tin's, a box's top): no lid of one.
     if len(lid) < c.min_fit_points or np.any(np.ptp(lid[:, :2], axis=0) > 2 * (c.max_radius + r_eps)):
         return None
@@ -1099,7 +1098,7 @@ def _lid_only(points, rest, ctx):
     if rim is None or len(rim.outline) < c.shape_bins:
         return None
     cx, cy, r, far = rim.cx, rim.cy, rim.radius, rim.outline
-    if not (c.min_radius <= r <= c.max_radius and rim.fits(sigma, r_eps, s.lid_arc)
+    if not (c.min_radius <= r <= c.max_radius and rim.fits(sigma, s.lid_arc)
             and g.facet_ratio(far, cx, cy, rim.outline_radius) >= s.max_facet_ratio
             and np.mean(np.hypot(lid[:, 0] - cx, lid[:, 1] - cy) <= r + r_eps) >= 0.95):
         return None

@@ -637,15 +637,15 @@ class RimCircle:
         rim = residual[min(2, int(np.count_nonzero(residual < -self.r_eps))):]
         return float(np.sqrt(np.mean(rim ** 2))) if len(rim) else np.inf
 
-    def arc(self, r_eps):
-        """The angle (rad) the outline points within r_eps (m) of the circle span around it."""
-        return arc_coverage(self.outline[np.abs(self.residual) <= r_eps], self.cx, self.cy)
+    def arc(self):
+        """The angle (rad) the outline points within r_eps of the circle span around it."""
+        return arc_coverage(self.outline[np.abs(self.residual) <= self.r_eps], self.cx, self.cy)
 
-    def fits(self, sigma, r_eps, min_arc):
+    def fits(self, sigma, min_arc):
         """Whether it is the rim of a can's lid: its rms within max(2 mm, 2 sigma) (sigma: the depth
         noise, m; the outline's samples lie up to a sample spacing inside the rim) and seen over at
-        least min_arc (rad) within r_eps (m)."""
-        return self.rms <= max(0.002, 2 * sigma) and self.arc(r_eps) >= min_arc
+        least min_arc (rad) within r_eps."""
+        return self.rms <= max(0.002, 2 * sigma) and self.arc() >= min_arc
 
 
 def rim_circle(disc_xy, sensor_xy, r_eps, sectors=36):

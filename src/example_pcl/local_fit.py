@@ -256,8 +256,8 @@ def _refit_lid(points, indices, T_sensor_from_plane, sensor_plane, can, top, sig
     rim = g.rim_circle(lid, sensor_plane[:2], r_eps)
     if rim is None or abs(rim.radius - can.radius) > c.max_radius_change:
         raise PerceptionError("its lid's rim fits no circle of its radius")
-    if not rim.fits(sigma, r_eps, a.cylinders.lid_arc):
-        raise PerceptionError(f"its lid's rim: rms {1e3 * rim.rms:.2f} mm, seen over {rim.arc(r_eps):.2f} rad")
+    if not rim.fits(sigma, a.cylinders.lid_arc):
+        raise PerceptionError(f"its lid's rim: rms {1e3 * rim.rms:.2f} mm, seen over {rim.arc():.2f} rad")
     T_can = g.can_pose(T_sensor_from_plane, rim.cx, rim.cy, can.support_height)
     return dataclasses.replace(can, T_sensor_from_can=T_can, radius=rim.radius, rms_error=rim.rms,
                                n_points=len(points), n_fit_points=len(rim.outline),

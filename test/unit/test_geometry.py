@@ -722,7 +722,7 @@ def test_rim_rms_leaves_out_the_ends_where_the_lid_is_cut_short_and_no_more():
     for res, fits in ((cut, True), (corners, False), (square, False)):
         outline = np.c_[(0.03 + res) * np.cos(angle), (0.03 + res) * np.sin(angle)]
         rim = g.RimCircle(0.0, 0.0, 0.03, outline, res, 0.005, 0.006)
-        assert rim.fits(0.0015, 0.006, 2.5) == fits, res
+        assert rim.fits(0.0015, 2.5) == fits, res
     rim = g.RimCircle(0.0, 0.0, 0.03, outline, cut, 0.005, 0.006)
     assert rim.rms == pytest.approx(0.0015)
-    assert rim.fits(0.0005, 0.006, 2.5) and not dataclasses.replace(rim, r_eps=0.012).fits(0.0005, 0.006, 2.5)
+    assert rim.fits(0.0005, 2.5) and not dataclasses.replace(rim, r_eps=0.012).fits(0.0005, 2.5)
