@@ -55,6 +55,7 @@ from functools import partial
 from typing import Optional
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from example_pcl import geometry as g
 from example_pcl import lying
@@ -1082,9 +1083,9 @@ def _lid_only(points, rest, ctx):
     lid = lid_points(pts, z_lid, sigma)
     # Nothing stands over a lid: a point of it with another more than a band higher at the same place
     # (seen from above, within 5 mm) is a wall's, an object's beside or behind the can.
-    over = pts[z > z_lid + s.band_height]
-    d2 = (lid[:, None, 0] - over[None, :, 0]) ** 2 + (lid[:, None, 1] - over[None, :, 1]) ** 2
-    lid = lid[~(d2 <= 0.005 ** 2).any(axis=1)]
+    over = pts[z > z_lid + s.band_height, :2]
+    if len(over) and len(lid):
+        lid = lid[cKDTree(over).query_ball_point(lid[:, :2], 0.005, return_length=True) == 0]
     # Wider than a can seen from above (a tin's, a box's top): no lid of one.
     if len(lid) < c.min_fit_points or np.any(np.ptp(lid[:, :2], axis=0) > 2 * (c.max_radius + r_eps)):
         return None

@@ -375,12 +375,13 @@ def _refine(q, z, theta, d, zc, r, r_eps, iterations, use, max_radius, max_gap, 
     millimetres off its circle, does not pull it. Returns (theta, d, zc, r, rms, n_inliers) or None
     when fewer than 4 points stay near it, the radius grows beyond 2 max_radius (m) or the axis
     leaves the height fit_lying_cylinder allows."""
+    q, z = q[use], z[use]  # once, not in every iteration
     for _ in range(iterations):
         axial, lat = _on_axis(q, theta)
         dl, dz = lat - d, z - zc
         rho = np.hypot(dl, dz)
         residual = rho - r
-        mine = use & _facing(dl, dz, theta, d, zc, sensor)
+        mine = _facing(dl, dz, theta, d, zc, sensor)
         within = np.abs(residual[mine])
         within = within[within <= r_eps]
         scale = 1.4826 * float(np.partition(within, len(within) // 2)[len(within) // 2]) if len(within) else np.inf
@@ -406,7 +407,7 @@ def _refine(q, z, theta, d, zc, r, r_eps, iterations, use, max_radius, max_gap, 
             break
     dl, dz = _on_axis(q, theta)[1] - d, z - zc
     residual = np.hypot(dl, dz) - r
-    inl = (np.abs(residual) <= r_eps) & use & _facing(dl, dz, theta, d, zc, sensor)
+    inl = (np.abs(residual) <= r_eps) & _facing(dl, dz, theta, d, zc, sensor)
     n = int(inl.sum())
     if n < 3 or not np.isfinite(r):
         return None
