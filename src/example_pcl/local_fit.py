@@ -17,7 +17,9 @@ sensor frame, metres, NaN holes):
    does not count), rms residual, shape error and visible arc (the search's ``min_hidden_arc`` or
    ``min_occluded_arc`` for a can it found partly hidden), plus a radius change of at most
    ``max_radius_change``. A can whose base is hidden and whose side shows too little (the search
-   found it by its lid, behind a taller can) is refitted by its lid's rim (geometry.rim_circle).
+   found it by its lid, behind a taller can) is refitted by its lid's rim (geometry.rim_circle), and
+   so is one whose side showed over less than ``min_hidden_arc`` when its lid's rim passes (a
+   narrow stripe of side does not fix a circle; else its side as above).
    A lying can (can_search's, on its side) is refitted from the pixels of its window within its
    radius plus ``region_margin`` of its previous axis, between its ends grown by
    ``region_margin``: Gauss-Newton on its horizontal axis and radius (lying.py) from the previous
@@ -201,6 +203,13 @@ def _refit_can(pts, T_sensor_from_plane, T_plane_from_sensor, sensor_plane, can,
     if len(side) < a.min_fit_points and not can.base_seen:
         # Its side hidden behind something in front (the search found it by its lid): the lid's rim.
         return _refit_lid(points, indices, T_sensor_from_plane, sensor_plane, can, top, sigma, r_eps, config)
+    if can.arc_coverage < a.cylinders.min_hidden_arc:
+        # A stripe of side too narrow to fix a circle (the search judged it on its lid's rim): the
+        # lid's rim where it shows, as the search found it.
+        try:
+            return _refit_lid(points, indices, T_sensor_from_plane, sensor_plane, can, top, sigma, r_eps, config)
+        except PerceptionError:
+            pass
     if len(side) < a.min_fit_points:
         raise PerceptionError(f"{len(side)} side point(s) where the can was (min {a.min_fit_points})")
     if len(side) > c.max_fit_points:
