@@ -392,7 +392,7 @@ def verify(free, cx, cy, r, ctx, z0=None, again=True, rim=False):
     claim the indices of the points of a round object that is no can (a tin, cup, bowl), else None.
     z0: the height (m) of the points the circle came from (None: any). again: when the fit lands
     more than 2 r_eps from the circle the bands were judged on, verify once more from the fitted
-    circle. rim: the circle is a lid's rim (_lid_can), judged as it is, not fitted to the side: a
+    circle. rim: the circle is a lid's rim (_lid_only), judged as it is, not fitted to the side: a
     side seen over a narrow stripe does not fix a circle, and over at least min_rim_side_arc it is a
     can's when the rest of its near half is hidden (_rest_hidden)."""
     c, s = ctx.config, ctx.search
@@ -1122,7 +1122,7 @@ def _lid_only(free, ctx):
     # above behind a lower object shows a little of its side below that (4 of 18 points, held-out seed
     # 1002 of "cluttered table"). Seen lower, the side is judged as the rounds judge one, on the rim's
     # circle: a can between others shows a narrow stripe of it, too narrow to fit a circle to (held-out
-    # 1207, 1400 of "cluttered table"); a 4 x 4 cm box's top shows its faces, no can's side ("boxes and
+    # 1400 of "cluttered table"); a 4 x 4 cm box's top shows its faces, no can's side ("boxes and
     # prisms", development seeds 413, 417: 70 % of the points near the circle lower).
     hidden_below = z_lid - c.min_can_height
     n_low = np.count_nonzero(z[side] < hidden_below)

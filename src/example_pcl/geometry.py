@@ -382,7 +382,7 @@ def unseen_angles(seen, toward, limb=1.3, samples=13):
     (toward: the direction to the sensor) that show none of its points."""
     theta = toward + np.linspace(-limb, limb, samples)
     gap = np.abs((np.asarray(seen)[None, :] - theta[:, None] + np.pi) % (2 * np.pi) - np.pi).min(axis=1, initial=np.pi)
-    return theta[gap > limb / (samples - 1)]
+    return theta[gap > 2 * limb / (samples - 1)]
 
 
 def behind(places, occluders, sensor, cone=0.01, margin=0.01):

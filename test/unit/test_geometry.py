@@ -662,6 +662,10 @@ def test_unseen_angles_are_the_samples_no_seen_angle_is_near():
     assert len(g.unseen_angles(np.linspace(2.5, 3.8, 40) - 2 * np.pi * (np.linspace(2.5, 3.8, 40) > np.pi), np.pi,
                                limb=0.5, samples=11)) == 0
     assert len(g.unseen_angles(np.array([]), 0.0)) == 13
+    # Within one spacing, not half: a point 0.07 from a sample sees it (the limb sample of a can's side
+    # seen to 0.11 rad short of it, "cluttered table" 88, was left unseen).
+    unseen = g.unseen_angles(np.array([0.57]), 0.5, limb=1.2, samples=25)
+    assert not np.isclose(unseen, 0.5).any() and not np.isclose(unseen, 0.6).any() and np.isclose(unseen, 0.4).any()
 
 
 def test_behind_needs_an_occluder_on_the_ray_and_nearer():
