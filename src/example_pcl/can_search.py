@@ -392,7 +392,7 @@ def verify(free, cx, cy, r, ctx, z0=None, again=True, rim=False):
     claim the indices of the points of a round object that is no can (a tin, cup, bowl), else None.
     z0: the height (m) of the points the circle came from (None: any). again: when the fit lands
     more than 2 r_eps from the circle the bands were judged on, verify once more from the fitted
-    circle. rim: the circle is a lid's rim (_lid_can), judged as it is, not fitted to the side: a
+    circle. rim: the circle is a lid's rim (_lid_only), judged as it is, not fitted to the side: a
     side seen over a narrow stripe does not fix a circle, and over at least min_rim_side_arc it is a
     can's when the rest of its near half is hidden (_rest_hidden)."""
     c, s = ctx.config, ctx.search

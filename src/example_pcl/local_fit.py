@@ -204,8 +204,8 @@ def _refit_can(pts, T_sensor_from_plane, T_plane_from_sensor, sensor_plane, can,
         # Its side hidden behind something in front (the search found it by its lid): the lid's rim.
         return _refit_lid(points, indices, T_sensor_from_plane, sensor_plane, can, top, sigma, r_eps, config)
     if can.arc_coverage < a.cylinders.min_hidden_arc:
-        # A stripe of side too narrow to fix a circle (the search judged it on its lid's rim): the
-        # lid's rim where it shows, as the search found it.
+        # A side seen over so narrow a stripe (beside a can in front, or one the search judged on its
+        # lid's rim) does not fix a circle: the lid's rim does, where it shows.
         try:
             return _refit_lid(points, indices, T_sensor_from_plane, sensor_plane, can, top, sigma, r_eps, config)
         except PerceptionError:
