@@ -284,8 +284,9 @@ def find_support_plane(xyz, viewpoint=(0.0, 0.0, 0.0), config=AutoConfig()):
     supported = [c for c in candidates if c[1] >= config.min_support]
     best = max(supported, key=lambda c: c[1]) if supported else max(candidates, key=lambda c: c[0].n_points)
     dense = g.subsample(pts, config.refine_step)
+    # The band's points are not needed here: no pass over the cloud for them.
     plane, T, _, _ = g.refine_plane(dense, best[0], config.refine_band, viewpoint,
-                                    iterations=config.refine_iterations)
+                                    iterations=config.refine_iterations, final_inliers=False)
     return plane, T, candidates
 
 

@@ -283,7 +283,7 @@ class CanFinder:
         cfg = self.config
         patch = geometry.patch_plane(self._selected_points("the table"), cfg.viewpoint)
         plane, T, _, iterations = geometry.refine_plane(self._sample, patch, cfg.z_eps, cfg.viewpoint,
-                                                        iterations=cfg.refine_iterations)
+                                                        iterations=cfg.refine_iterations, final_inliers=False)
         indices = self._set_table(plane, T)
         tilt = np.degrees(np.arccos(np.clip(abs(patch.normal @ plane.normal), 0, 1)))
         message = (f"table plane: normal {_fmt(plane.normal)}, d={plane.d:.3f} m, {len(indices)} inliers "
