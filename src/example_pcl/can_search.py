@@ -475,7 +475,7 @@ def verify(free, cx, cy, r, ctx, z0=None, again=True, rim=False):
         return free.idx[taken]
 
     if rim:
-        return _judge_side(free, cx, cy, r, r_eps, r_eps, sigma, z_lo, z_hi, top, claim, ctx, rim=True)
+        return _judge_side(free, cx, cy, r, r_eps, r_eps, sigma, z_lo, z_hi, top, claim, ctx, s.min_rim_side_arc)
     # A linear (Kasa) circle first: cheap, and it already says when the radius is no can's.
     kx, ky, kr = (float(v[0]) for v in g.fit_circles_algebraic(pts[side]))
     if not np.isfinite(kr):
@@ -499,12 +499,13 @@ def verify(free, cx, cy, r, ctx, z0=None, again=True, rim=False):
     # the wide circle's points (a part of the can's height): the bands are judged again on the fit.
     if again and (np.hypot(cx - judged[0], cy - judged[1]) > 2 * r_eps or abs(r - judged[2]) > 2 * r_eps):
         return verify(free, cx, cy, r, ctx, again=False)
-    return _judge_side(free, cx, cy, r, r_eps, cutoff, sigma, z_lo, z_hi, top, claim, ctx)
+    return _judge_side(free, cx, cy, r, r_eps, cutoff, sigma, z_lo, z_hi, top, claim, ctx, s.min_occluded_arc)
 
 
-def _judge_side(free, cx, cy, r, r_eps, cutoff, sigma, z_lo, z_hi, top, claim, ctx, rim=False):
+def _judge_side(free, cx, cy, r, r_eps, cutoff, sigma, z_lo, z_hi, top, claim, ctx, min_occluded_arc):
     """verify's judgement of the side on the circle (cx, cy, r) it fitted (or a lid's rim): its run of
-    bands z_lo..z_hi, the lid's height top (m), the robust fit's cut-off (m); claim: verify's."""
+    bands z_lo..z_hi, the lid's height top (m), the robust fit's cut-off (m); claim: verify's;
+    min_occluded_arc (rad): the least arc seen when the rest of the near half is hidden."""
     c, s = ctx.config, ctx.search
     # The fit moved the circle: the rest looks within reach of a handle or a support of the new one.
     near = free.near(cx, cy, r + r_eps + max(2 * s.handle_reach, s.support_reach))
@@ -544,9 +545,8 @@ def _judge_side(free, cx, cy, r, r_eps, cutoff, sigma, z_lo, z_hi, top, claim, c
         return None, (f"only {100 * fraction:.0f}% of the side within {1e3 * r_eps:.1f} mm of the circle "
                       f"(min {100 * c.min_inlier_fraction:.0f}%)"), None
     arc = g.arc_coverage(sxy, cx, cy)
-    min_occluded = s.min_rim_side_arc if rim else s.min_occluded_arc
     if arc < c.min_arc and not (arc >= s.min_hidden_arc and _in_front(cx, cy, r, base, top, ctx)) \
-            and not (arc >= min_occluded and _rest_hidden(sxy, cx, cy, r, r_eps, base, z_end, ctx)):
+            and not (arc >= min_occluded_arc and _rest_hidden(sxy, cx, cy, r, r_eps, base, z_end, ctx)):
         return None, f"side seen over {arc:.2f} rad < {c.min_arc:.2f} rad", None
     # Checked where both halves span enough of the circle for its curvature to show: at least 1.25
     # on the 2324 cans found so on the development seeds 0-99 and 400-499, 1.38 on the real ones;

@@ -379,11 +379,11 @@ def arc_coverage(xy, cx, cy):
 def unseen_angles(seen, toward, limb=1.3, samples=13):
     """The angles (rad, float64 (K,)) among `samples` spread within `limb` of `toward` that no angle in
     `seen` (rad, (N,)) lies within half a sample spacing of: the parts of a round side's near half
-    (toward: the direction to the sensor) that show none of its points. (Within one spacing found a
-    can whose side shows at its limbs, "cluttered table" 88, but made a box in real learn21 a lying
-    can: docs/can_search.md.)"""
+    (toward: the direction to the sensor) that show none of its points."""
     theta = toward + np.linspace(-limb, limb, samples)
     gap = np.abs((np.asarray(seen)[None, :] - theta[:, None] + np.pi) % (2 * np.pi) - np.pi).min(axis=1, initial=np.pi)
+    # Half a spacing: one found a can seen at its limbs ("cluttered table" 88) but made a box of the
+    # real learn21 a lying can (docs/can_search.md, Limits).
     return theta[gap > limb / (samples - 1)]
 
 

@@ -200,16 +200,16 @@ def _refit_can(pts, T_sensor_from_plane, T_plane_from_sensor, sensor_plane, can,
     side = points[(z >= bottom + a.fit_bottom + 3 * sigma) & (z <= top - a.top_margin - 3 * sigma), :2]
     rows, cols = np.divmod(flat, c1 - c0)
     indices = (rows + r0) * pts.shape[1] + (cols + c0)
-    if len(side) < a.min_fit_points and not can.base_seen:
-        # Its side hidden behind something in front (the search found it by its lid): the lid's rim.
-        return _refit_lid(points, indices, T_sensor_from_plane, sensor_plane, can, top, sigma, r_eps, config)
-    if can.arc_coverage < a.cylinders.min_hidden_arc:
-        # A side seen over so narrow a stripe (beside a can in front, or one the search judged on its
-        # lid's rim) does not fix a circle: the lid's rim does, where it shows.
+    # Its side hidden behind something in front (the search found it by its lid), or seen over so narrow
+    # a stripe (beside a can in front, or judged on its lid's rim) that it does not fix a circle: the
+    # lid's rim, and for the stripe its side where the rim does not pass.
+    hidden = len(side) < a.min_fit_points and not can.base_seen
+    if hidden or can.arc_coverage < a.cylinders.min_hidden_arc:
         try:
             return _refit_lid(points, indices, T_sensor_from_plane, sensor_plane, can, top, sigma, r_eps, config)
         except PerceptionError:
-            pass
+            if hidden:
+                raise
     if len(side) < a.min_fit_points:
         raise PerceptionError(f"{len(side)} side point(s) where the can was (min {a.min_fit_points})")
     if len(side) > c.max_fit_points:
