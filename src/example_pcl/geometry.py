@@ -643,6 +643,21 @@ class RimCircle:
         """The angle (rad) the outline points within r_eps of the circle span around it."""
         return arc_coverage(self.outline[np.abs(self.residual) <= self.r_eps], self.cx, self.cy)
 
+    def with_side(self, side_xy):
+        """The circle refitted to the outline and to side points under the lid (float (M, 2+), m), by
+        Tukey's biweight from this one: a lid cut short by what stands in front fixes its circle
+        poorly, a stripe of side seen beside that pins it. The outline is moved out by half the
+        spacing, where the rim lies. A RimCircle with the same outline, or None when no circle fits."""
+        rel = self.outline - (self.cx, self.cy)
+        out = self.outline + 0.5 * self.spacing * rel / np.maximum(np.hypot(rel[:, 0], rel[:, 1]), 1e-12)[:, None]
+        try:
+            cx, cy, r, _ = fit_circle_robust(np.vstack([out, _xy(side_xy)]), (self.cx, self.cy), self.radius,
+                                             self.r_eps)
+        except PerceptionError:
+            return None
+        residual = np.hypot(self.outline[:, 0] - cx, self.outline[:, 1] - cy) - (r - 0.5 * self.spacing)
+        return RimCircle(float(cx), float(cy), float(r), self.outline, residual, self.spacing, self.r_eps)
+
     def fits(self, sigma, min_arc):
         """Whether it is the rim of a can's lid: its rms within max(2 mm, 2 sigma) (sigma: the depth
         noise, m; the outline's samples lie up to a sample spacing inside the rim) and seen over at
