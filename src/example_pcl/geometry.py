@@ -485,7 +485,7 @@ def _fit_circle(xy, center0, radius0, free_radius, r_eps, max_iterations, tol, m
         # (damping reaching 1e12 means no step lowers the cost: already at the minimum)
         if not (np.isfinite(params).all() and np.hypot(params[0], params[1]) <= max_shift
                 and 0 < params[2] <= max(10 * radius0, radius0 + max_shift)):
-            raise PerceptionError(f"the circle fit diverged (centre moved more than {max_shift} m or radius "
+            raise PerceptionError(f"the circle fit diverged (centre moved more than {1e3 * max_shift:.1f} mm or radius "
                                   "left its range); select a patch on the can's side and check the table plane")
         if np.sqrt(step @ step) < tol:
             converged = True
@@ -722,23 +722,35 @@ def fit_circles_algebraic(xy, weights=None):
     features = np.empty((9, len(xy)))
     features[0], features[1], features[2], features[3], features[4] = 1.0, u, v, u * u, u * v
     features[5], features[6], features[7], features[8] = v * v, u * s, v * s, s
-    w = np.ones((1, len(xy))) if weights is None else np.atleast_2d(np.asarray(weights, dtype=float))
-    n, su, sv, suu, suv, svv, sus, svs, ss = features @ w.T
-    # Rows (2u, 2v, 1) (a, b, c) = u^2 + v^2, c = r^2 - a^2 - b^2 (fit_circle_algebraic's system), by
-    # its normal equations (the first two rows halved).
-    A = np.empty((len(n), 3, 3))
-    A[:, 0, 0], A[:, 0, 1], A[:, 0, 2] = 2 * suu, 2 * suv, su
-    A[:, 1, 0], A[:, 1, 1], A[:, 1, 2] = 2 * suv, 2 * svv, sv
-    A[:, 2, 0], A[:, 2, 1], A[:, 2, 2] = 2 * su, 2 * sv, n
+    if weights is None:
+        sums = features.sum(axis=1)[:, None]
+    else:
+        sums = features @ np.atleast_2d(np.asarray(weights, dtype=float)).T
+    a, b, r = kasa_from_sums(*sums)
+    return a + mean[0], b + mean[1], r
+
+
+def kasa_from_sums(n, su, sv, suu, suv, svv, sus, svs, ss):
+    """Kasa circles (centre (a, b), radius r; arrays of the sums' shape, m) from the sums over each
+    subset of points (u, v) (m): of 1, u, v, u^2, uv, v^2, u s, v s and s (s = u^2 + v^2). NaN for a
+    subset of fewer than 3 points or (nearly) collinear ones. The 3 x 3 normal equations of rows
+    (u, v, 1) (2a, 2b, c) = s, c = r^2 - a^2 - b^2, are solved in closed form (Cramer): for the
+    batches of the searches, LAPACK's per-system overhead costs more than the arithmetic."""
+    # The symmetric matrix [[suu, suv, su], [suv, svv, sv], [su, sv, n]]: cofactors, determinant.
+    c00, c01, c02 = svv * n - sv * sv, sv * su - suv * n, suv * sv - svv * su
+    c11, c12, c22 = suu * n - su * su, suv * su - suu * sv, suu * svv - suv * suv
+    det = suu * c00 + suv * c01 + su * c02
     # Collinear or too few points: singular relative to its scale (n x spread^4).
     spread = np.maximum(suu + svv, 1e-300)
-    good = (n >= 3) & (np.abs(np.linalg.det(A)) > 1e-12 * np.maximum(n, 1) * spread * spread)
-    A[~good] = np.eye(3)
-    a, bb, c = np.linalg.solve(A, np.stack([sus, svs, ss], axis=1)[..., None])[..., 0].T
+    good = (n >= 3) & (np.abs(det) > 1e-12 * np.maximum(n, 1) * spread * spread)
+    inverse = 1.0 / np.where(good, det, 1.0)
+    a = 0.5 * (c00 * sus + c01 * svs + c02 * ss) * inverse
+    b = 0.5 * (c01 * sus + c11 * svs + c12 * ss) * inverse
+    c = (c02 * sus + c12 * svs + c22 * ss) * inverse
     with np.errstate(invalid="ignore"):
-        r = np.sqrt(c + a * a + bb * bb)
+        r = np.sqrt(c + a * a + b * b)
     nan = np.where(good, 0.0, np.nan)
-    return a + mean[0] + nan, bb + mean[1] + nan, r + nan
+    return a + nan, b + nan, r + nan
 
 
 def fit_circle_geometric(xy, c0, r0, r_eps, max_iterations=50, tol=1e-6, min_inliers=5, max_shift=None):
@@ -785,7 +797,7 @@ def fit_circle_geometric(xy, c0, r0, r_eps, max_iterations=50, tol=1e-6, min_inl
         a, b, r = a + step[0], b + step[1], r + step[2]
         if not (np.isfinite((a, b, r)).all() and np.hypot(a, b) <= max_shift
                 and 0 < r <= max(10 * r0, r0 + max_shift)):
-            raise PerceptionError(f"the circle fit diverged (centre moved more than {max_shift} m or radius "
+            raise PerceptionError(f"the circle fit diverged (centre moved more than {1e3 * max_shift:.1f} mm or radius "
                                   "left its range)")
         if np.sqrt(step @ step) < tol:
             break
@@ -837,7 +849,7 @@ def fit_circle_robust(xy, c0, r0, r_eps, k=4.685, min_scale=5e-4, max_iterations
             raise PerceptionError("the robust circle fit is singular (the points are collinear)") from None
         a, b, r = a + step[0], b + step[1], r + step[2]
         if not (np.isfinite((a, b, r)).all() and np.hypot(a, b) <= max_shift and r > 0):
-            raise PerceptionError(f"the robust circle fit diverged (centre moved more than {max_shift} m)")
+            raise PerceptionError(f"the robust circle fit diverged (centre moved more than {1e3 * max_shift:.1f} mm)")
         if np.sqrt(step @ step) < tol:
             break
     return float(a + c0[0]), float(b + c0[1]), float(r), scale

@@ -61,28 +61,16 @@ class LyingFit:
 def _kasa(lateral, z, weights):
     """Kasa circles of the points (lateral[d], z) per direction d and subset k: lateral float64 (D, N),
     z (N,), weights (K, N) 0/1 masks. Returns (c_l, c_z, r), each (K, D); NaN for a subset of fewer
-    than 3 points or (nearly) collinear ones. One matrix product for all subsets and directions."""
-    k, (d, n) = len(weights), lateral.shape
+    than 3 points or (nearly) collinear ones. One product for all subsets and directions."""
+    d, n = lateral.shape
     lm, zm = lateral.mean(axis=1, keepdims=True), z.mean()
     u, v = lateral - lm, z - zm  # centred, for precision
     s = u * u + v * v
     w = np.asarray(weights, dtype=float)
-    su, suu, suv, sus, svs, ss = (w @ np.concatenate([u, u * u, u * v, u * s, v * s, s]).T).reshape(k, 6, d
-                                                                                                  ).transpose(1, 0, 2)
-    sv, svv, count = (w @ np.stack([v, v * v, np.ones(n)], axis=1)).T[:, :, None]
-    A = np.empty((k, d, 3, 3))
-    A[..., 0, 0], A[..., 0, 1], A[..., 0, 2] = suu, suv, su
-    A[..., 1, 1], A[..., 1, 2], A[..., 2, 2] = svv, sv, count
-    A[..., 1, 0], A[..., 2, 0], A[..., 2, 1] = suv, su, sv
-    spread = np.maximum(suu + svv, 1e-300)
-    good = (count >= 3) & (np.abs(np.linalg.det(A)) > 1e-12 * np.maximum(count, 1) * spread * spread)
-    A[~good] = np.eye(3)
-    x = np.linalg.solve(A, np.stack([sus, svs, ss], axis=-1)[..., None])[..., 0]
-    cu, cv = x[..., 0] / 2, x[..., 1] / 2
-    with np.errstate(invalid="ignore"):
-        r = np.sqrt(x[..., 2] + cu * cu + cv * cv)
-    nan = np.where(good, 0.0, np.nan)
-    return cu + lm[:, 0] + nan, cv + zm + nan, r + nan
+    su, suu, suv, sus, svs, ss = np.einsum("kn,fdn->fkd", w, np.stack([u, u * u, u * v, u * s, v * s, s]))
+    sv, svv, count = np.einsum("kn,fn->fk", w, np.stack([v, v * v, np.ones(n)]))[:, :, None]
+    cu, cv, r = g.kasa_from_sums(count, su, sv, suu, suv, svv, sus, svs, ss)
+    return cu + lm[:, 0], cv + zm, r
 
 
 def _subsets(xy, radius, seeds):
