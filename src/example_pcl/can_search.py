@@ -580,6 +580,11 @@ def _judge_side(free, cx, cy, r, r_eps, cutoff, sigma, z_lo, z_hi, top, claim, c
     why = _inside_cup(cx, cy, r, base_z, top, r_eps, ctx)
     if why:
         return None, why, None
+    if arc < s.min_hidden_arc:
+        joint = _pinned_by_lid(pts, sxy, cx, cy, r, top, sigma, r_eps, max_rms, ctx)
+        if joint is not None:
+            cx, cy, r, rms = joint
+            dist = np.hypot(x - cx, y - cy)
     mine = free.idx[near[(dist <= r + r_eps) & (z >= lowest) & (z <= top + s.band_height)]]
     height = _covered_top(cx, cy, r, r_eps, top, sigma, ctx) - base_z
     can = Can(T_sensor_from_can=g.can_pose(ctx.T_sensor_from_plane, cx, cy, base_z), radius=r,
@@ -587,6 +592,29 @@ def _judge_side(free, cx, cy, r, r_eps, cutoff, sigma, z_lo, z_hi, top, claim, c
               center_plane=np.array([cx, cy]), shape_error=shape, indices=mine, support=support,
               base_seen=base_seen, support_height=float(base_z))
     return can, None, None
+
+
+def _pinned_by_lid(pts, side_xy, cx, cy, r, top, sigma, r_eps, max_rms, ctx):
+    """(cx, cy, r, rms) of a can whose side shows over a narrow arc only, its circle refitted to that
+    side (side_xy: float (M, 2), m) and its lid's rim (RimCircle.with_side; the lid among pts, float
+    (N, 3), at height top, as _lid_only takes it), or None to keep it: an arc under min_hidden_arc
+    fixes the radius poorly (a can behind another, 0.71 rad: 31.6 mm for 42.6, its axis 11 mm off,
+    "cluttered table" 93). Only when the lid's rim passes _lid_only's tests on the new circle and the
+    side lies on it within max_rms (m); rms: the side's on it."""
+    s = ctx.search
+    lid = lid_points(pts, top, sigma)
+    over = pts[pts[:, 2] > top + s.band_height, :2]
+    if len(over) and len(lid):
+        lid = lid[cKDTree(over).query_ball_point(lid[:, :2], 0.005, return_length=True) == 0]
+    if len(lid) < ctx.config.min_fit_points:
+        return None
+    rim = g.rim_circle(lid, ctx.sensor[:2], r_eps)
+    joint = None if rim is None else rim.with_side(side_xy)
+    if joint is None or not _lid_rim(joint, lid, sigma, r_eps, ctx):
+        return None
+    residual = np.hypot(side_xy[:, 0] - joint.cx, side_xy[:, 1] - joint.cy) - joint.radius
+    rms = float(np.sqrt(np.mean(residual ** 2)))
+    return None if rms > max_rms else (joint.cx, joint.cy, joint.radius, rms)
 
 
 def _inside_cup(cx, cy, r, z_lo, z_hi, r_eps, ctx):

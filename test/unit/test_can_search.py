@@ -847,6 +847,19 @@ def test_development_misses_are_found_where_they_stand(case, seed):
         assert can.support == t["support"]
 
 
+@pytest.mark.parametrize("seed", [0, 75])
+def test_a_can_seen_over_a_narrow_arc_is_pinned_by_its_lid(seed):
+    """A can behind another whose side shows over less than min_hidden_arc ("cans touching",
+    development seeds 0 and 75) has its circle refitted to that side and its lid's rim: within 1.5 mm
+    of its axis (3.1 and 5.4 mm fitted to the side alone)."""
+    scene = sc.generate_scene(so.case_spec("cans touching", seed))
+    to_table = transforms.invert(np.asarray(scene.truth["camera_from_table"]))
+    upright = [c for c in af.find_cans(scene.xyz).cans if not c.lying]
+    for t in (t for t in scene.truth["objects"] if t["is_can"]):
+        base = transforms.apply(to_table, t["base_center"])
+        assert min(np.hypot(*(table_xy(to_table, c)[:2] - base[:2])) for c in upright) < 0.0015
+
+
 @pytest.mark.parametrize("seed", [0, 5])
 def test_can_behind_a_can_is_found(seed):
     """A can behind another, touching it, seen only beside the front one's silhouette (0.55-0.86 rad of
