@@ -598,14 +598,10 @@ def _pinned_by_lid(pts, side_xy, cx, cy, r, top, sigma, r_eps, max_rms, ctx):
     """(cx, cy, r, rms) of a can whose side shows over a narrow arc only, its circle refitted to that
     side (side_xy: float (M, 2), m) and its lid's rim (RimCircle.with_side; the lid among pts, float
     (N, 3), at height top, as _lid_only takes it), or None to keep it: an arc under min_hidden_arc
-    fixes the radius poorly (a can behind another, 0.71 rad: 31.6 mm for 42.6, its axis 11 mm off,
-    "cluttered table" 93). Only when the lid's rim passes _lid_only's tests on the new circle and the
+    fixes the radius poorly (cans behind others 3-5 mm off their axis, "cans touching" 0 and 75). Only
+    when the lid's rim passes _lid_only's tests on the new circle and the
     side lies on it within max_rms (m); rms: the side's on it."""
-    s = ctx.search
-    lid = lid_points(pts, top, sigma)
-    over = pts[pts[:, 2] > top + s.band_height, :2]
-    if len(over) and len(lid):
-        lid = lid[cKDTree(over).query_ball_point(lid[:, :2], 0.005, return_length=True) == 0]
+    lid = _bare_lid(pts, top, sigma, ctx.search.band_height)
     if len(lid) < ctx.config.min_fit_points:
         return None
     rim = g.rim_circle(lid, ctx.sensor[:2], r_eps)
@@ -1123,12 +1119,7 @@ def _lid_only(free, ctx):
     z_lid = float(np.median(z[np.abs(band - fullest) <= 1]))
     sigma = _sigma(ctx, pts[high].mean(axis=0))
     r_eps = max(c.r_eps, c.r_eps_sigmas * sigma)
-    lid = lid_points(pts, z_lid, sigma)
-    # Nothing stands over a lid: a point of it with another more than a band higher at the same place
-    # (seen from above, within 5 mm) is a wall's, an object's beside or behind the can.
-    over = pts[z > z_lid + s.band_height, :2]
-    if len(over) and len(lid):
-        lid = lid[cKDTree(over).query_ball_point(lid[:, :2], 0.005, return_length=True) == 0]
+    lid = _bare_lid(pts, z_lid, sigma, s.band_height)
     # Wider than a can seen from above (a tin's, a box's top): no lid of one.
     if len(lid) < c.min_fit_points or np.any(np.ptp(lid[:, :2], axis=0) > 2 * (c.max_radius + r_eps)):
         return None
@@ -1148,15 +1139,18 @@ def _lid_only(free, ctx):
     n_low = np.count_nonzero(z[side] < hidden_below)
     if n_low > max(s.min_band_points, 0.5 * np.count_nonzero(side)):
         can = verify(free, cx, cy, r, ctx, rim=True)[0]
+        if can is not None:
+            return can
         # A lid cut short by the can in front fixes its circle to a few millimetres only, and the
         # stripe of side seen beside that can lies off it (held-out 1507 of "cluttered table": 5 mm
         # outside): the circle refitted to both, if its lid's rim still fits it.
         under = (np.abs(dist - r) <= 2 * r_eps) & (z < hidden_below) & _facing(pts[:, 0], pts[:, 1], cx, cy, r, ctx)
-        if can is None and np.count_nonzero(under) >= c.min_fit_points:
-            joint = rim.with_side(pts[under])
-            if joint is not None and _lid_rim(joint, lid, sigma, r_eps, ctx):
-                can = verify(free, joint.cx, joint.cy, joint.radius, ctx, rim=True)[0]
-        return can
+        if np.count_nonzero(under) < c.min_fit_points:
+            return None
+        joint = rim.with_side(pts[under])
+        if joint is None or not _lid_rim(joint, lid, sigma, r_eps, ctx):
+            return None
+        return verify(free, joint.cx, joint.cy, joint.radius, ctx, rim=True)[0]
     if (_open_top(pts[dist <= r + r_eps], cx, cy, r, r_eps, 0.0, z_lid, ctx)
             or not _rest_hidden(pts[side, :2], cx, cy, r, r_eps, c.min_height + 0.01, hidden_below, ctx)):
         return None
@@ -1181,6 +1175,17 @@ def _lid_rim(rim, lid, sigma, r_eps, ctx):
             and np.mean(np.hypot(lid[:, 0] - cx, lid[:, 1] - cy) <= r + r_eps) >= 0.95
             and not any(not other.lying and np.hypot(*(other.center_plane - (cx, cy))) < r + other.radius - r_eps
                         for other in ctx.found))
+
+
+def _bare_lid(points, z_lid, sigma, band):
+    """lid_points less those under a point more than `band` (m) higher at the same place (seen from
+    above, within 5 mm): nothing stands over a lid, such a point is a wall's, an object's beside or
+    behind the can."""
+    lid = lid_points(points, z_lid, sigma)
+    over = points[points[:, 2] > z_lid + band, :2]
+    if len(over) and len(lid):
+        lid = lid[cKDTree(over).query_ball_point(lid[:, :2], 0.005, return_length=True) == 0]
+    return lid
 
 
 def lid_points(points, z_lid, sigma):
