@@ -580,6 +580,7 @@ def _judge_side(free, cx, cy, r, r_eps, cutoff, sigma, z_lo, z_hi, top, claim, c
     why = _inside_cup(cx, cy, r, base_z, top, r_eps, ctx)
     if why:
         return None, why, None
+    # The arc and shape error stay the side's own: the tracker refits a can seen this narrowly by its lid.
     if arc < s.min_hidden_arc:
         joint = _pinned_by_lid(pts, sxy, cx, cy, r, top, sigma, r_eps, max_rms, ctx)
         if joint is not None:
@@ -1128,7 +1129,8 @@ def _lid_only(free, ctx):
         return None
     cx, cy, r, far = rim.cx, rim.cy, rim.radius, rim.outline
     dist = np.hypot(pts[:, 0] - cx, pts[:, 1] - cy)
-    side = (np.abs(dist - r) <= r_eps) & (z < z_lid - s.band_height) & _facing(pts[:, 0], pts[:, 1], cx, cy, r, ctx)
+    facing = _facing(pts[:, 0], pts[:, 1], cx, cy, r, ctx)
+    side = (np.abs(dist - r) <= r_eps) & (z < z_lid - s.band_height) & facing
     # Its side seen mostly within min_can_height under the lid, hidden below. A can seen steeply from
     # above behind a lower object shows a little of its side below that (4 of 18 points, held-out seed
     # 1002 of "cluttered table"). Seen lower, the side is judged as the rounds judge one, on the rim's
@@ -1144,7 +1146,7 @@ def _lid_only(free, ctx):
         # A lid cut short by the can in front fixes its circle to a few millimetres only, and the
         # stripe of side seen beside that can lies off it (held-out 1507 of "cluttered table": 5 mm
         # outside): the circle refitted to both, if its lid's rim still fits it.
-        under = (np.abs(dist - r) <= 2 * r_eps) & (z < hidden_below) & _facing(pts[:, 0], pts[:, 1], cx, cy, r, ctx)
+        under = (np.abs(dist - r) <= 2 * r_eps) & (z < hidden_below) & facing
         if np.count_nonzero(under) < c.min_fit_points:
             return None
         joint = rim.with_side(pts[under])
