@@ -110,7 +110,7 @@ def _distinct(members, score, count, max_overlap=0.5, scan=64):
 
 def fit_lying_cylinders(points, r_eps, min_radius, max_radius, max_gap, directions=36, iterations=15,
                         max_points=300, count=3, subset_radius=0.05, band=0.01, band_fraction=0.2, min_band_points=3,
-                        max_band_gap=1, sensor=None, min_own=0.6):
+                        max_band_gap=1, sensor=None, min_own=0.6, occluders=None):
     """Up to `count` distinct horizontal cylinders explaining points (float64 (N, 3), plane frame, m)
     of a lying can and maybe other objects touching it: LyingFits, most inliers first.
 
@@ -126,13 +126,16 @@ def fit_lying_cylinders(points, r_eps, min_radius, max_radius, max_gap, directio
     neighbour's top) is kept (the fit's extent), refitted on it without the slabs of r_eps at its
     ends, and, if that turned the axis by more than a degree (and left a can's radius on the table),
     the run is found again along it and refitted. With the sensor ((x, y, z), plane frame, m) given,
-    only the points on a cylinder's half facing it count (_facing). At most max_points points (evenly
-    subsampled) are fitted; rms and n_inliers are theirs. The run along the axis is counted on all
-    the points."""
+    only the points on a cylinder's half facing it count (_facing), and with occluders (float (M, 3),
+    plane frame, m) the run goes on over bands where the rest of that half is hidden behind them
+    (_through_hidden). At most max_points points (evenly subsampled) are fitted; rms and n_inliers are
+    theirs. The run along the axis is counted on all the points."""
     every = points
     points, origin, q, z, sq = _centred(points, max_points, sensor)
     if len(points) < 3:
         return []
+    if occluders is not None:
+        occluders = occluders - np.array([origin[0], origin[1], 0.0])
     # The run along the axis is counted on every point: a stride through the raster leaves some bands
     # nearly empty.
     q_every, z_every = every[:, :2] - origin, every[:, 2]
@@ -164,7 +167,8 @@ def fit_lying_cylinders(points, r_eps, min_radius, max_radius, max_gap, directio
         return min_radius <= fit[3] <= max_radius and abs(fit[2] - fit[3]) <= max_gap
 
     def explained(fit):
-        return _explained(q_every, z_every, fit, r_eps, sq, band, band_fraction, min_band_points, max_band_gap)
+        return _explained(q_every, z_every, fit, r_eps, sq, band, band_fraction, min_band_points, max_band_gap,
+                          occluders)
 
     def without_ends(fit, run):
         return _without_ends(q, z, origin, fit, r_eps, iterations, max_radius, max_gap, sq, run, band)
@@ -256,15 +260,17 @@ def _on_axis(q, theta):
     return q[:, 0] * c + q[:, 1] * s, -q[:, 0] * s + q[:, 1] * c
 
 
-def _explained(q, z, fit, r_eps, sensor, band, fraction, min_points, max_gap):
+def _explained(q, z, fit, r_eps, sensor, band, fraction, min_points, max_gap, occluders=None):
     """The axial extent (lo, hi) (m) of the run of `band`-long bands along the axis of the cylinder fit
     ((theta, offset, zc, r, ...)) that its circle explains (geometry.band_run), or None.
 
     A band where at least as many points (and min_points) lie inside the cylinder or just outside it
     (within 3 r_eps, on its half facing the sensor) as on it ends the run: another object's surface
     is seen there (a box at its end, wider or lower than it, or as wide, its face then meeting the
-    circle along one stripe and going on beyond it). The run then loses the bands at one end where
-    no can's side is seen (_without_flat_end: a box's top as high as the can)."""
+    circle along one stripe and going on beyond it). With occluders ((M, 3), m, in the frame of q and
+    z), the run goes on over the bands beyond it whose facing half is seen where it is not hidden
+    behind them (_through_hidden). The run then loses the bands at one end where no can's side is
+    seen (_without_flat_end: a box's top as high as the can)."""
     t, d, zc, r = fit[:4]
     axial, lateral = _on_axis(q, t)
     dl, dz = lateral - d, z - zc
@@ -281,6 +287,10 @@ def _explained(q, z, fit, r_eps, sensor, band, fraction, min_points, max_gap):
                      blocked=other >= np.maximum(min_points, band_on))
     if run is None:
         return None
+    if occluders is not None and sensor is not None:
+        on = (np.abs(rho - r) <= r_eps) & facing
+        run = _through_hidden(run, bands[on], np.arctan2(dz[on], dl[on]), band_inside <= band_on, other < min_points,
+                              fit, a0, band, r_eps, sensor, occluders, min_points)
     near = facing & (np.abs(rho - r) <= 3 * r_eps)
     # Up the flank toward the sensor, 30-65 degrees from the top: a box's corner there lies off
     # the circle (a square's around it), a can's side on it.
@@ -290,6 +300,39 @@ def _explained(q, z, fit, r_eps, sensor, band, fraction, min_points, max_gap):
     diagonal = toward & (angle >= np.radians(30)) & (angle <= np.radians(65))
     run = _without_flat_end(bands[near], (rho - r)[near], diagonal[near], run, r_eps)
     return a0 + run[0] * band, a0 + (run[1] + 1) * band
+
+
+def _through_hidden(run, on_bands, on_angles, side_like, clear, fit, a0, band, r_eps, sensor, occluders, min_points):
+    """The run (first, last band) grown over the bands beyond its ends that show at least min_points
+    on the circle (on_bands, on_angles: band and angle (rad, from the lateral axis) of the points on
+    it), no more inside it (side_like, per band) and nothing else just outside (clear), and whose
+    facing half lies, where they show none, behind the occluders ((M, 3), m, the frame of the fit's
+    coordinates) seen from the sensor: a can lying behind a lower object shows only its top there,
+    fewer points than band_run asks ("cluttered table" 1602, a cup in front of one end)."""
+    t, d, zc, r = fit[:4]
+    ux, uy = np.cos(t), np.sin(t)
+    fl, fz = _toward_sensor(t, d, zc, sensor)
+    sensor = np.asarray(sensor, float)
+    occ_axial, occ_lateral = _on_axis(occluders[:, :2], t)
+    # Not the can itself (its own near side would hide its far parts).
+    occluders = occluders[np.hypot(occ_lateral - d, occluders[:, 2] - zc) > r + r_eps]
+    counts = np.bincount(on_bands, minlength=len(side_like))
+
+    def hidden(b):
+        if not (0 <= b < len(side_like)) or counts[b] < min_points or not side_like[b] or not clear[b]:
+            return False
+        unseen = g.unseen_angles(on_angles[on_bands == b], np.arctan2(fz, fl))
+        a = a0 + (b + 0.5) * band
+        places = np.column_stack([a * ux - (d + r * np.cos(unseen)) * uy, a * uy + (d + r * np.cos(unseen)) * ux,
+                                  zc + r * np.sin(unseen)])
+        return bool(g.behind(places, occluders, sensor).all())
+
+    first, last = run
+    while hidden(first - 1):
+        first -= 1
+    while hidden(last + 1):
+        last += 1
+    return first, last
 
 
 def _without_flat_end(bands, residual, diagonal, run, r_eps, min_bands=2, min_count=10, ratio=3.0, floor=1 / 3,
@@ -484,7 +527,7 @@ def lying_can(points, r_eps, sigma, config, search, sensor=None, occluders=None)
     fits = fit_lying_cylinders(points[low], r_eps, c.min_radius, c.max_radius, s.lying_gap + 3 * sigma,
                                s.lying_directions, min(c.fit_iterations, 10), s.fit_points, band=s.band_height,
                                band_fraction=s.band_fraction, min_band_points=s.min_band_points,
-                               max_band_gap=s.max_band_gap, sensor=sensor)
+                               max_band_gap=s.max_band_gap, sensor=sensor, occluders=occluders)
     if not fits:
         return None, "lying: no horizontal cylinder fits its points"
     why = ""
