@@ -31,3 +31,24 @@ def test_a_can_reported_twice_counts_once_and_once_false():
     tally = bench_cans.Tally()
     bench_cans.score(tally, [upright(0.0, 0.0, 0.0, 0.1), upright(0.001, 0.0, 0.0, 0.1)], truth, [], np.eye(4), 0.015)
     assert (tally.found, tally.missed, tally.false) == (1, 0, 1)
+
+
+def test_a_real_lying_cans_truth_is_the_cylinder_its_labelled_points_lie_on():
+    """The labelled points of a lying can seen from one side (its near half, noisy, and one end's
+    disc): the truth's axis is the cylinder's, its middle the middle of the span along it, not the
+    middle of the points' spans seen from above (here 16 mm toward the sensor)."""
+    rng = np.random.default_rng(4)
+    yaw, r, length, middle = 0.7, 0.038, 0.23, np.array([0.05, -0.12, 0.038])
+    u, n = np.array([np.cos(yaw), np.sin(yaw), 0.0]), np.array([-np.sin(yaw), np.cos(yaw), 0.0])
+    a = rng.uniform(-length / 2, length / 2, 6000)
+    phi = rng.uniform(np.radians(80), np.radians(260), 6000)  # the half facing a sensor off -n, above
+    rho = r + rng.normal(0.0, 0.001, 6000)
+    side = middle + a[:, None] * u + (rho * np.cos(phi))[:, None] * n + (rho * np.sin(phi))[:, None] * [0, 0, 1]
+    disc_r, disc_phi = r * np.sqrt(rng.uniform(0, 1, 500)), rng.uniform(0, 2 * np.pi, 500)
+    end = (middle + length / 2 * u + (disc_r * np.cos(disc_phi))[:, None] * n
+           + (disc_r * np.sin(disc_phi))[:, None] * [0, 0, 1])
+    truth = bench_cans.lying_truth(np.concatenate([side, end]))
+    assert abs(truth["axis"] @ u) > np.cos(np.radians(0.2))
+    np.testing.assert_allclose(truth["center"], middle, atol=0.001)
+    span_middle = 0.5 * (np.percentile(side[:, :2] @ n[:2], 1) + np.percentile(side[:, :2] @ n[:2], 99))
+    assert abs(span_middle - middle[:2] @ n[:2]) > 0.01
