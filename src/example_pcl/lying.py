@@ -134,8 +134,6 @@ def fit_lying_cylinders(points, r_eps, min_radius, max_radius, max_gap, directio
     points, origin, q, z, sq = _centred(points, max_points, sensor)
     if len(points) < 3:
         return []
-    if occluders is not None:
-        occluders = occluders - np.array([origin[0], origin[1], 0.0])
     # The run along the axis is counted on every point: a stride through the raster leaves some bands
     # nearly empty.
     q_every, z_every = every[:, :2] - origin, every[:, 2]
@@ -168,7 +166,7 @@ def fit_lying_cylinders(points, r_eps, min_radius, max_radius, max_gap, directio
 
     def explained(fit):
         return _explained(q_every, z_every, fit, r_eps, sq, band, band_fraction, min_band_points, max_band_gap,
-                          occluders)
+                          occluders, origin)
 
     def without_ends(fit, run):
         return _without_ends(q, z, origin, fit, r_eps, iterations, max_radius, max_gap, sq, run, band)
@@ -260,15 +258,15 @@ def _on_axis(q, theta):
     return q[:, 0] * c + q[:, 1] * s, -q[:, 0] * s + q[:, 1] * c
 
 
-def _explained(q, z, fit, r_eps, sensor, band, fraction, min_points, max_gap, occluders=None):
+def _explained(q, z, fit, r_eps, sensor, band, fraction, min_points, max_gap, occluders=None, origin=(0.0, 0.0)):
     """The axial extent (lo, hi) (m) of the run of `band`-long bands along the axis of the cylinder fit
     ((theta, offset, zc, r, ...)) that its circle explains (geometry.band_run), or None.
 
     A band where at least as many points (and min_points) lie inside the cylinder or just outside it
     (within 3 r_eps, on its half facing the sensor) as on it ends the run: another object's surface
     is seen there (a box at its end, wider or lower than it, or as wide, its face then meeting the
-    circle along one stripe and going on beyond it). With occluders ((M, 3), m, in the frame of q and
-    z), the run goes on over the bands beyond it whose facing half is seen where it is not hidden
+    circle along one stripe and going on beyond it). With occluders ((M, 3), m, plane frame; q is
+    measured from `origin`, (x, y)), the run goes on over the bands beyond it whose facing half is seen where it is not hidden
     behind them (_through_hidden). The run then loses the bands at one end where no can's side is
     seen (_without_flat_end: a box's top as high as the can)."""
     t, d, zc, r = fit[:4]
@@ -288,9 +286,8 @@ def _explained(q, z, fit, r_eps, sensor, band, fraction, min_points, max_gap, oc
     if run is None:
         return None
     if occluders is not None and sensor is not None:
-        on = (np.abs(rho - r) <= r_eps) & facing
-        run = _through_hidden(run, bands[on], np.arctan2(dz[on], dl[on]), band_inside <= band_on, other < min_points,
-                              fit, a0, band, r_eps, sensor, occluders, min_points)
+        run = _through_hidden(run, bands, (np.abs(rho - r) <= r_eps) & facing, dl, dz, band_inside <= band_on,
+                              other < min_points, fit, a0, band, r_eps, sensor, occluders, origin, min_points)
     near = facing & (np.abs(rho - r) <= 3 * r_eps)
     # Up the flank toward the sensor, 30-65 degrees from the top: a box's corner there lies off
     # the circle (a square's around it), a can's side on it.
@@ -302,30 +299,33 @@ def _explained(q, z, fit, r_eps, sensor, band, fraction, min_points, max_gap, oc
     return a0 + run[0] * band, a0 + (run[1] + 1) * band
 
 
-def _through_hidden(run, on_bands, on_angles, side_like, clear, fit, a0, band, r_eps, sensor, occluders, min_points):
+def _through_hidden(run, bands, on, dl, dz, side_like, clear, fit, a0, band, r_eps, sensor, occluders, origin,
+                    min_points):
     """The run (first, last band) grown over the bands beyond its ends that show at least min_points
-    on the circle (on_bands, on_angles: band and angle (rad, from the lateral axis) of the points on
-    it), no more inside it (side_like, per band) and nothing else just outside (clear), and whose
-    facing half lies, where they show none, behind the occluders ((M, 3), m, the frame of the fit's
-    coordinates) seen from the sensor: a can lying behind a lower object shows only its top there,
-    fewer points than band_run asks ("cluttered table" 1602, a cup in front of one end)."""
+    on the circle (`on`, bool, with bands, dl and dz: each point's band and lateral and vertical
+    offsets from the axis, m), no more inside it (side_like, per band) and nothing else just outside
+    (clear), and whose facing half lies, where they show none, behind the occluders ((M, 3), m, plane
+    frame; the fit's coordinates are measured from `origin`, (x, y)) seen from the sensor: a can lying behind a lower object shows only
+    its top there, fewer points than band_run asks ("cluttered table" 1602, a cup in front of one end)."""
     t, d, zc, r = fit[:4]
-    ux, uy = np.cos(t), np.sin(t)
-    fl, fz = _toward_sensor(t, d, zc, sensor)
-    sensor = np.asarray(sensor, float)
-    occ_axial, occ_lateral = _on_axis(occluders[:, :2], t)
-    # Not the can itself (its own near side would hide its far parts).
-    occluders = occluders[np.hypot(occ_lateral - d, occluders[:, 2] - zc) > r + r_eps]
-    counts = np.bincount(on_bands, minlength=len(side_like))
+    counts = np.bincount(bands[on], minlength=len(side_like))
+    seen = {}
 
     def hidden(b):
         if not (0 <= b < len(side_like)) or counts[b] < min_points or not side_like[b] or not clear[b]:
             return False
-        unseen = g.unseen_angles(on_angles[on_bands == b], np.arctan2(fz, fl))
-        a = a0 + (b + 0.5) * band
-        places = np.column_stack([a * ux - (d + r * np.cos(unseen)) * uy, a * uy + (d + r * np.cos(unseen)) * ux,
+        if not seen:  # once, and only for a band that may join: most runs end at an empty band
+            occ = occluders - np.array([origin[0], origin[1], 0.0])
+            occ_lateral = _on_axis(occ[:, :2], t)[1]
+            # Not the can itself (its own near side would hide its far parts).
+            seen["occluders"] = occ[np.hypot(occ_lateral - d, occ[:, 2] - zc) > r + r_eps]
+            seen["toward"] = np.arctan2(*_toward_sensor(t, d, zc, sensor)[::-1])
+        mine = on & (bands == b)
+        unseen = g.unseen_angles(np.arctan2(dz[mine], dl[mine]), seen["toward"])
+        a, lateral = a0 + (b + 0.5) * band, d + r * np.cos(unseen)
+        places = np.column_stack([a * np.cos(t) - lateral * np.sin(t), a * np.sin(t) + lateral * np.cos(t),
                                   zc + r * np.sin(unseen)])
-        return bool(g.behind(places, occluders, sensor).all())
+        return bool(g.behind(places, seen["occluders"], np.asarray(sensor, float)).all())
 
     first, last = run
     while hidden(first - 1):

@@ -558,8 +558,8 @@ def test_the_run_along_a_lying_can_goes_on_where_its_side_is_hidden_behind_somet
     side_like, clear = np.ones(10, bool), np.ones(10, bool)
 
     def run(occluders, side_like=side_like):
-        return lying._through_hidden((3, 9), bands[seen], angles[seen], side_like, clear, fit, -0.05, 0.01, 0.004,
-                                     sensor, occluders, 3)
+        return lying._through_hidden((3, 9), bands, seen, r * np.cos(angles), r * np.sin(angles), side_like, clear,
+                                     fit, -0.05, 0.01, 0.004, sensor, occluders, (0.0, 0.0), 3)
 
     assert run(wall) == (0, 9)
     assert run(np.empty((0, 3))) == (3, 9)
