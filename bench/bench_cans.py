@@ -4,8 +4,8 @@
 
 * Generated: every case of example_pcl.scene_objects.CASES for held-out seeds (default 1700-1709;
   development used 0-99 and 400-499, and 100-104, 200-209, 300-309, 600-609, 700-709, 800-809,
-  900-909, 1000-1009, 1100-1109, 1200-1209, 1300-1309, 1400-1409, 1500-1509 and 1600-1609 were held out before), truth from the
-  generator.
+  900-909, 1000-1009, 1100-1109, 1200-1209, 1300-1309, 1400-1409, 1500-1509 and 1600-1609 were
+  held out before), truth from the generator.
 * Real: ../shared/data/osd, truth from the human labels: each object's points (label // 10), the
   table from the table's labels (1-9); what each object is comes from bench/osd_objects.json
   (looked up in the colour images). A can's centre is the circle fitted to its labelled side points.
@@ -203,7 +203,8 @@ def lying_truth(pts, turn=np.radians(6), step=np.radians(0.1), end=0.015):
         rms = float(np.sqrt(np.mean(residual[residual <= 0.006] ** 2)))
         if best is None or rms < best[0]:
             middle = mean + 0.5 * (lo + hi) * u + fit.center[0] * n
-            best = (rms, {"center": np.array([middle[0], middle[1], fit.center[1]]), "axis": np.array([u[0], u[1], 0.0])})
+            best = (rms, {"center": np.array([middle[0], middle[1], fit.center[1]]),
+                          "axis": np.array([u[0], u[1], 0.0])})
     return best[1]
 
 

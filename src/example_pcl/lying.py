@@ -266,9 +266,9 @@ def _explained(q, z, fit, r_eps, sensor, band, fraction, min_points, max_gap, oc
     (within 3 r_eps, on its half facing the sensor) as on it ends the run: another object's surface
     is seen there (a box at its end, wider or lower than it, or as wide, its face then meeting the
     circle along one stripe and going on beyond it). With occluders ((M, 3), m, plane frame; q is
-    measured from `origin`, (x, y)), the run goes on over the bands beyond it whose facing half is seen where it is not hidden
-    behind them (_through_hidden). The run then loses the bands at one end where no can's side is
-    seen (_without_flat_end: a box's top as high as the can)."""
+    measured from `origin`, (x, y)), the run goes on over the bands beyond it whose facing half is
+    seen where it is not hidden behind them (_through_hidden). The run then loses the bands at one
+    end where no can's side is seen (_without_flat_end: a box's top as high as the can)."""
     t, d, zc, r = fit[:4]
     axial, lateral = _on_axis(q, t)
     dl, dz = lateral - d, z - zc
@@ -305,27 +305,28 @@ def _through_hidden(run, bands, on, dl, dz, side_like, clear, fit, a0, band, r_e
     on the circle (`on`, bool, with bands, dl and dz: each point's band and lateral and vertical
     offsets from the axis, m), no more inside it (side_like, per band) and nothing else just outside
     (clear), and whose facing half lies, where they show none, behind the occluders ((M, 3), m, plane
-    frame; the fit's coordinates are measured from `origin`, (x, y)) seen from the sensor: a can lying behind a lower object shows only
-    its top there, fewer points than band_run asks ("cluttered table" 1602, a cup in front of one end)."""
+    frame; the fit's coordinates are measured from `origin`, (x, y)) seen from the sensor: a can
+    lying behind a lower object shows only its top there, fewer points than band_run asks
+    ("cluttered table" 1602, a cup in front of one end)."""
     t, d, zc, r = fit[:4]
     counts = np.bincount(bands[on], minlength=len(side_like))
-    seen = {}
+    cache = {}
 
     def hidden(b):
         if not (0 <= b < len(side_like)) or counts[b] < min_points or not side_like[b] or not clear[b]:
             return False
-        if not seen:  # once, and only for a band that may join: most runs end at an empty band
+        if not cache:  # once, and only for a band that may join: most runs end at an empty band
             occ = occluders - np.array([origin[0], origin[1], 0.0])
             occ_lateral = _on_axis(occ[:, :2], t)[1]
             # Not the can itself (its own near side would hide its far parts).
-            seen["occluders"] = occ[np.hypot(occ_lateral - d, occ[:, 2] - zc) > r + r_eps]
-            seen["toward"] = np.arctan2(*_toward_sensor(t, d, zc, sensor)[::-1])
+            cache["occluders"] = occ[np.hypot(occ_lateral - d, occ[:, 2] - zc) > r + r_eps]
+            cache["toward"] = np.arctan2(*_toward_sensor(t, d, zc, sensor)[::-1])
         mine = on & (bands == b)
-        unseen = g.unseen_angles(np.arctan2(dz[mine], dl[mine]), seen["toward"])
+        unseen = g.unseen_angles(np.arctan2(dz[mine], dl[mine]), cache["toward"])
         a, lateral = a0 + (b + 0.5) * band, d + r * np.cos(unseen)
         places = np.column_stack([a * np.cos(t) - lateral * np.sin(t), a * np.sin(t) + lateral * np.cos(t),
                                   zc + r * np.sin(unseen)])
-        return bool(g.behind(places, seen["occluders"], np.asarray(sensor, float)).all())
+        return bool(g.behind(places, cache["occluders"], np.asarray(sensor, float)).all())
 
     first, last = run
     while hidden(first - 1):
