@@ -567,6 +567,44 @@ def test_the_run_along_a_lying_can_goes_on_where_its_side_is_hidden_behind_somet
     assert run(wall, side_like=np.arange(10) != 1) == (2, 9)
 
 
+@pytest.mark.parametrize("seed", [1, 7])
+def test_a_lying_can_with_a_lower_box_at_its_end_is_found_with_its_length(seed):
+    """"lying can touching box", development seeds 1 and 7: a box 41-47 mm high at the can's end (the
+    can 57-64 mm high), its top inside the circle beyond the end, was taken for the end's disc: the
+    can came out 14-17 mm long, its middle 7-8 mm off. Found as test_generated_lying_cans_touching_are_found
+    asks, and its length within 1 cm."""
+    assert_generated_lying_cans_found("lying can touching box", seed)
+    scene = sc.generate_scene(so.case_spec("lying can touching box", seed))
+    truth = next(t for t in scene.truth["objects"] if t["lying"])
+    (can,) = [c for c in af.find_cans(scene.xyz).cans if c.lying]
+    assert abs(can.height - truth["height"]) < 0.01, (can.height, truth["height"])
+
+
+def test_a_lying_cans_end_is_its_disc_not_a_lower_box_top_beyond_it():
+    """Beyond the extent its circle explains (to 70 mm along the axis), a lying can's end is where
+    the points inside its circle stand across the axis (its end's disc, at 72 mm); a lower box's top
+    touching the end lies along it (72-80 mm, one height) and is not the can's."""
+    rng = np.random.default_rng(2)
+    r, zc, r_eps = 0.032, 0.032, 0.005
+    side_axial = rng.uniform(-0.07, 0.07, 2000)
+    side_angle = rng.uniform(0.2, np.pi - 0.2, 2000)
+    disc_rho, disc_angle = 0.8 * r * np.sqrt(rng.uniform(0, 1, 200)), rng.uniform(0, np.pi, 200)
+    # (axial, height above the axis, lateral), m
+    disc = (0.072 + rng.normal(0, 0.0005, 200), disc_rho * np.sin(disc_angle), disc_rho * np.cos(disc_angle))
+    top = (rng.uniform(0.072, 0.08, 200), 0.012 + rng.normal(0, 0.0005, 200), rng.uniform(-0.02, 0.02, 200))
+
+    def ends(beyond, with_z=True):
+        axial = np.concatenate([side_axial, beyond[0]])
+        dz = np.concatenate([r * np.sin(side_angle), beyond[1]])
+        dl = np.concatenate([r * np.cos(side_angle), beyond[2]])
+        return lying.end_positions(axial, np.hypot(dl, dz), r, r_eps, (-0.07, 0.07), 0.01, zc + dz if with_z else None)
+
+    assert ends(disc)[1] == pytest.approx(0.072, abs=0.001)
+    assert ends(top)[1] == pytest.approx(0.07, abs=0.001)
+    assert ends(top, with_z=False)[1] > 0.075
+    assert ends(disc)[0] == pytest.approx(-0.07, abs=0.001)
+
+
 @pytest.mark.parametrize("seed", [67, 78])
 def test_a_box_top_beyond_a_lying_cans_end_is_not_its_side(seed):
     """A box touching a lying can's end, its top about as high as the can (75 and 59 mm, the cans'
