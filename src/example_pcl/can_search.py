@@ -606,8 +606,8 @@ def _pinned_by_lid(pts, side_xy, cx, cy, r, top, sigma, r_eps, max_rms, ctx):
     if len(lid) < ctx.config.min_fit_points:
         return None
     rim = g.rim_circle(lid, ctx.sensor[:2], r_eps)
-    joint = None if rim is None else rim.with_side(side_xy)
-    if joint is None or not _lid_rim(joint, lid, sigma, r_eps, ctx):
+    joint = None if rim is None else _rim_with_side(rim, side_xy, lid, sigma, r_eps, ctx)
+    if joint is None:
         return None
     residual = np.hypot(side_xy[:, 0] - joint.cx, side_xy[:, 1] - joint.cy) - joint.radius
     rms = float(np.sqrt(np.mean(residual ** 2)))
@@ -1149,8 +1149,8 @@ def _lid_only(free, ctx):
         under = (np.abs(dist - r) <= 2 * r_eps) & (z < hidden_below) & facing
         if np.count_nonzero(under) < c.min_fit_points:
             return None
-        joint = rim.with_side(pts[under])
-        if joint is None or not _lid_rim(joint, lid, sigma, r_eps, ctx):
+        joint = _rim_with_side(rim, pts[under], lid, sigma, r_eps, ctx)
+        if joint is None:
             return None
         return verify(free, joint.cx, joint.cy, joint.radius, ctx, rim=True)[0]
     if (_open_top(pts[dist <= r + r_eps], cx, cy, r, r_eps, 0.0, z_lid, ctx)
@@ -1177,6 +1177,14 @@ def _lid_rim(rim, lid, sigma, r_eps, ctx):
             and np.mean(np.hypot(lid[:, 0] - cx, lid[:, 1] - cy) <= r + r_eps) >= 0.95
             and not any(not other.lying and np.hypot(*(other.center_plane - (cx, cy))) < r + other.radius - r_eps
                         for other in ctx.found))
+
+
+def _rim_with_side(rim, side_xy, lid, sigma, r_eps, ctx):
+    """The lid's rim (geometry.RimCircle) refitted to its outline and a stripe of side under it
+    (side_xy, m; RimCircle.with_side), or None when that fits no circle or the lid (its points, float
+    (N, 3), m) fails the rim's tests on it (_lid_rim)."""
+    joint = rim.with_side(side_xy)
+    return joint if joint is not None and _lid_rim(joint, lid, sigma, r_eps, ctx) else None
 
 
 def _bare_lid(points, z_lid, sigma, band):

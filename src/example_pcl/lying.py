@@ -277,7 +277,8 @@ def _explained(q, z, fit, r_eps, sensor, band, fraction, min_points, max_gap, oc
     bands = ((axial - a0) / band).astype(np.int64)
     nb = int(bands.max()) + 1
     facing = _facing(dl, dz, t, d, zc, sensor)
-    band_on = np.bincount(bands[(np.abs(rho - r) <= r_eps) & facing], minlength=nb)
+    on = (np.abs(rho - r) <= r_eps) & facing
+    band_on = np.bincount(bands[on], minlength=nb)
     band_inside = np.bincount(bands[rho < r - r_eps], minlength=nb)
     band_out = np.bincount(bands[facing & (rho > r + r_eps) & (rho <= r + 3 * r_eps)], minlength=nb)
     other = band_inside + band_out
@@ -286,8 +287,8 @@ def _explained(q, z, fit, r_eps, sensor, band, fraction, min_points, max_gap, oc
     if run is None:
         return None
     if occluders is not None and sensor is not None:
-        run = _through_hidden(run, bands, (np.abs(rho - r) <= r_eps) & facing, dl, dz, band_inside <= band_on,
-                              other < min_points, fit, a0, band, r_eps, sensor, occluders, origin, min_points)
+        may_join = (band_on >= min_points) & (band_inside <= band_on) & (other < min_points)
+        run = _through_hidden(run, may_join, bands, on, dl, dz, fit, a0, band, r_eps, sensor, occluders, origin)
     near = facing & (np.abs(rho - r) <= 3 * r_eps)
     # Up the flank toward the sensor, 30-65 degrees from the top: a box's corner there lies off
     # the circle (a square's around it), a can's side on it.
@@ -299,41 +300,49 @@ def _explained(q, z, fit, r_eps, sensor, band, fraction, min_points, max_gap, oc
     return a0 + run[0] * band, a0 + (run[1] + 1) * band
 
 
-def _through_hidden(run, bands, on, dl, dz, side_like, clear, fit, a0, band, r_eps, sensor, occluders, origin,
-                    min_points):
-    """The run (first, last band) grown over the bands beyond its ends that show at least min_points
-    on the circle (`on`, bool, with bands, dl and dz: each point's band and lateral and vertical
-    offsets from the axis, m), no more inside it (side_like, per band) and nothing else just outside
-    (clear), and whose facing half lies, where they show none, behind the occluders ((M, 3), m, plane
-    frame; the fit's coordinates are measured from `origin`, (x, y)) seen from the sensor: a can
-    lying behind a lower object shows only its top there, fewer points than band_run asks
-    ("cluttered table" 1602, a cup in front of one end)."""
+def _through_hidden(run, may_join, bands, on, dl, dz, fit, a0, band, r_eps, sensor, occluders, origin):
+    """The run (first, last band) grown over the bands beyond its ends that may join it (may_join, per
+    band: enough points on the circle, no more inside, nothing else just outside) and whose facing half
+    lies, where its points on the circle (`on`, bool, with bands, dl and dz: each point's band and
+    lateral and vertical offsets from the axis, m) show none, behind the occluders ((M, 3), m, plane
+    frame; the fit's coordinates are measured from `origin`, (x, y)) seen from the sensor: a can lying
+    behind a lower object shows only its top there, fewer points than band_run asks ("cluttered
+    table" 1602, a cup in front of one end)."""
+    first, last = run
+    if not (first > 0 and may_join[first - 1]) and not (last + 1 < len(may_join) and may_join[last + 1]):
+        return run  # most runs end at an empty band: the occluders are not looked at
     t, d, zc, r = fit[:4]
-    counts = np.bincount(bands[on], minlength=len(side_like))
-    cache = {}
+    occ = occluders - np.array([origin[0], origin[1], 0.0])
+    # Not the can itself (its own near side would hide its far parts).
+    occ = occ[np.hypot(_on_axis(occ[:, :2], t)[1] - d, occ[:, 2] - zc) > r + r_eps]
 
     def hidden(b):
-        if not (0 <= b < len(side_like)) or counts[b] < min_points or not side_like[b] or not clear[b]:
+        if not (0 <= b < len(may_join) and may_join[b]):
             return False
-        if not cache:  # once, and only for a band that may join: most runs end at an empty band
-            occ = occluders - np.array([origin[0], origin[1], 0.0])
-            occ_lateral = _on_axis(occ[:, :2], t)[1]
-            # Not the can itself (its own near side would hide its far parts).
-            cache["occluders"] = occ[np.hypot(occ_lateral - d, occ[:, 2] - zc) > r + r_eps]
-            cache["toward"] = np.arctan2(*_toward_sensor(t, d, zc, sensor)[::-1])
         mine = on & (bands == b)
-        unseen = g.unseen_angles(np.arctan2(dz[mine], dl[mine]), cache["toward"])
-        a, lateral = a0 + (b + 0.5) * band, d + r * np.cos(unseen)
-        places = np.column_stack([a * np.cos(t) - lateral * np.sin(t), a * np.sin(t) + lateral * np.cos(t),
-                                  zc + r * np.sin(unseen)])
-        return bool(g.behind(places, cache["occluders"], np.asarray(sensor, float)).all())
+        return _hidden_where_unseen(fit, [a0 + (b + 0.5) * band], np.arctan2(dz[mine], dl[mine]), sensor, occ)
 
-    first, last = run
     while hidden(first - 1):
         first -= 1
     while hidden(last + 1):
         last += 1
     return first, last
+
+
+def _hidden_where_unseen(fit, axial, seen, sensor, occluders):
+    """Whether the places on the half of the cylinder fit ((theta, offset, zc, r, ...)) facing the
+    sensor, at the axial coordinates `axial` (m), that no angle in `seen` (rad, from the lateral axis)
+    comes near (geometry.unseen_angles) all lie behind one of the occluders ((M, 3), m) seen from the
+    sensor; sensor, occluders and fit in one frame (the fits' coordinates)."""
+    t, d, zc, r = fit[:4]
+    fl, fz = _toward_sensor(t, d, zc, sensor)
+    unseen = g.unseen_angles(seen, np.arctan2(fz, fl))
+    if len(unseen) == 0:
+        return True
+    lateral, height = d + r * np.cos(unseen), zc + r * np.sin(unseen)
+    places = np.vstack([np.column_stack([a * np.cos(t) - lateral * np.sin(t), a * np.sin(t) + lateral * np.cos(t),
+                                         height]) for a in axial])
+    return bool(g.behind(places, occluders, np.asarray(sensor, float)).all())
 
 
 def _without_flat_end(bands, residual, diagonal, run, r_eps, min_bands=2, min_count=10, ratio=3.0, floor=1 / 3,
@@ -630,16 +639,12 @@ def _rest_hidden(fit, side_lateral, side_z, a_lo, a_hi, r_eps, sensor, occluders
     behind one of the occluders (float (N, 3), plane frame, m) seen from the sensor ((x, y, z), plane
     frame), next to both ends: a lying can behind another, touching it, is seen only above the front
     one (as can_search's upright _rest_hidden)."""
-    fl, fz = _toward_sensor(fit.theta, fit.offset, fit.zc, _from_origin(sensor, fit.origin))
-    unseen = g.unseen_angles(np.arctan2(side_z - fit.zc, side_lateral - fit.offset), np.arctan2(fz, fl))
-    if len(unseen) == 0:
-        return True
     axial, _, _, rho = fit.coordinates(occluders)
     own = (rho <= fit.radius + r_eps) & (axial >= a_lo - r_eps) & (axial <= a_hi + r_eps)
-    ux, uy = fit.direction
-    ring = fit.radius * (np.cos(unseen)[:, None] * (-uy, ux, 0.0) + np.sin(unseen)[:, None] * (0.0, 0.0, 1.0))
-    places = np.vstack([fit.point_on_axis(a) + ring for a in (a_lo + r_eps, a_hi - r_eps)])
-    return bool(g.behind(places, occluders[~own], np.asarray(sensor, float)).all())
+    others = occluders[~own] - np.array([fit.origin[0], fit.origin[1], 0.0])
+    return _hidden_where_unseen((fit.theta, fit.offset, fit.zc, fit.radius), (a_lo + r_eps, a_hi - r_eps),
+                                np.arctan2(side_z - fit.zc, side_lateral - fit.offset),
+                                _from_origin(sensor, fit.origin), others)
 
 
 def _bulging(axial, rho, a_lo, length, sigma, s):

@@ -555,11 +555,12 @@ def test_the_run_along_a_lying_can_goes_on_where_its_side_is_hidden_behind_somet
     seen = (bands >= 3) | np.tile(over[facing], 10)
     a, z = np.meshgrid(np.arange(-0.05, -0.02, 0.002), np.arange(0.0, 0.05, 0.002))
     wall = np.column_stack([a.ravel(), np.full(a.size, -0.06), z.ravel()])
-    side_like, clear = np.ones(10, bool), np.ones(10, bool)
+    side_like = np.ones(10, bool)
 
     def run(occluders, side_like=side_like):
-        return lying._through_hidden((3, 9), bands, seen, r * np.cos(angles), r * np.sin(angles), side_like, clear,
-                                     fit, -0.05, 0.01, 0.004, sensor, occluders, (0.0, 0.0), 3)
+        may_join = side_like & (np.bincount(bands[seen], minlength=10) >= 3)
+        return lying._through_hidden((3, 9), may_join, bands, seen, r * np.cos(angles), r * np.sin(angles), fit,
+                                     -0.05, 0.01, 0.004, sensor, occluders, (0.0, 0.0))
 
     assert run(wall) == (0, 9)
     assert run(np.empty((0, 3))) == (3, 9)
