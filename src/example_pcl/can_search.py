@@ -82,7 +82,7 @@ class CylinderSearchConfig:
     the pool points the circles tried did not explain (a big box's faces crowd a small can's
     triplets out of the first draw), verifying the best retry_verify of each; then the best
     retry_verify of the first draw's circles that one tried took out as its duplicates though
-    elsewhere (_suppressed_by).
+    elsewhere (_suppressed_by), scored on the pool points not on a flat face.
     band_height, band_fraction, min_band_points, max_band_gap (bands): the growth along the axis.
     table_gap: a base this close above min_height stands on the table; support_reach: a
     supporting surface is looked for this far around the can; occluder_reach: an object hiding
@@ -972,7 +972,8 @@ def _draws(xy, z_pool, face, tried, tried_circles, r_eps, ctx):
     circles that one tried (`tried_circles`, (cx, cy, r) each) took out of the first choice as
     sharing its points though elsewhere (_suppressed_by: a circle through a can's front and a tall
     box's edge verified first and failed, its points the can's own circles'; held-out 606 "can
-    touching box"), scored on every pool point."""
+    touching box"), scored on the pool points not on a flat face (a box's face beside a thin can
+    outscored its circles with a wider one through both; held-out 1708 "can touching box")."""
     c, s = ctx.config, ctx.search
     first = None
     for attempt in range(1 + s.retries):
@@ -985,7 +986,7 @@ def _draws(xy, z_pool, face, tried, tried_circles, r_eps, ctx):
         first = circles if first is None else first
         yield (*circles, axy, az)
     keep = _suppressed_by(first[:3], tried_circles, xy, r_eps, ctx.sensor)
-    yield (*(a[keep] for a in first), xy, z_pool)
+    yield (*(a[keep] for a in first), xy[~face], z_pool[~face])
 
 
 def search_cluster(points, ctx):
