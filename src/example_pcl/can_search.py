@@ -622,17 +622,23 @@ def _pinned_by_lid(pts, side_xy, cx, cy, r, top, sigma, r_eps, max_rms, ctx):
 
 
 def _side_and_rim(pts, side_xy, top, sigma, r_eps, ctx):
-    """(cx, cy, r) (m) of the circle through a stripe of side (side_xy, float (M, 2)) and its lid's rim
-    (the lid among pts, float (N, 3), at height top, as _lid_only takes it; the rim's outline less
-    where a taller object in front shadows the lid: geometry.rim_circle), or None. Only when the
-    rim lies on it within r_eps (m) over at least min_hidden_arc, its radius is a can's and 95 % of
-    the lid's points lie inside it; verify judges the side on it as on a fitted one."""
+    """(cx, cy, r) (m) of the circle through a stripe of side (side_xy, float (M, 2)) and the rim of
+    its lid that a taller object in front shadows (the lid among pts, float (N, 3), at height top, as
+    _lid_only takes it; its outline less the samples beside the shadow: geometry.shadowed), or None.
+    Only when the rim lies on it within r_eps (m) over at least min_hidden_arc, its radius is a can's
+    and 95 % of the lid's points lie inside it; verify judges the side on it as on a fitted one."""
     c, s = ctx.config, ctx.search
     lid = _bare_lid(pts, top, sigma, s.band_height)
     if len(lid) < c.min_fit_points:
         return None
+    outline = g.rim_outline(lid, ctx.sensor)
+    if len(outline) < 3:
+        return None
     taller = ctx.standing[ctx.standing[:, 2] > top + s.band_height]
-    rim = g.rim_circle(lid, ctx.sensor, r_eps, occluders=taller)
+    # Where a taller object in front shadows the lid, the outline is the shadow's edge, not the rim.
+    edge = g.shadowed(outline, float(np.median(lid[:, 2])), taller, ctx.sensor, 0.006)
+    # A lid no taller object shadows fixes its circle alone (_lid_only, _pinned_by_lid).
+    rim = g.rim_circle(lid, ctx.sensor, r_eps, outline=outline[~edge]) if edge.any() else None
     if rim is None:
         return None
     # The side evenly subsampled to at most 4 points per outline point: the rim weighs in the fit.

@@ -669,18 +669,11 @@ class RimCircle:
         return self.rms <= max(0.002, 2 * sigma) and self.arc() >= min_arc
 
 
-def rim_circle(disc_xy, sensor, r_eps, sectors=36, occluders=None, shadow_reach=0.006):
-    """The circle of the rim of a disc of points seen from above (a can's lid), from its outline on
-    the half away from the sensor, where the rim is seen against what lies behind (the near half may
-    be hidden): the outermost point in each of `sectors` sectors around the points' centroid,
-    fitted algebraically, then by Tukey's biweight (fit_circle_robust; r_eps, m). The outermost
-    samples lie on average half a sample spacing inside the rim (the median distance from some
-    points to their nearest neighbour): added to the radius. disc_xy: float (N, 2+) (m); sensor:
-    (2,) or (3,), the sensor in the same frame. occluders: None, or float (M, 3), what stands higher
-    than the disc (its height: disc_xy's median z): an outline point with a place within
-    shadow_reach (m) beside it, at the disc's height, hidden behind one of them (behind) is where
-    that object's shadow cuts the disc, not its rim, and is left out. RimCircle, or None when fewer
-    than 3 outline points or no circle fits."""
+def rim_outline(disc_xy, sensor, sectors=36):
+    """The outline of a disc of points seen from above (a can's lid) on the half away from the sensor,
+    where its rim is seen against what lies behind (the near half may be hidden): the outermost
+    point in each of `sectors` sectors around the points' centroid. disc_xy: float (N, 2+) (m);
+    sensor: (2+,), the sensor in the same frame. float (K, 2)."""
     xy = _xy(disc_xy)
     centroid = xy.mean(axis=0)
     rel = xy - centroid
@@ -688,10 +681,18 @@ def rim_circle(disc_xy, sensor, r_eps, sectors=36, occluders=None, shadow_reach=
     sector = ((np.arctan2(rel[:, 1], rel[:, 0]) + np.pi) / (2 * np.pi) * sectors).astype(np.int64) % sectors
     order = np.lexsort((reach, sector))
     outline = xy[order[np.r_[sector[order][1:] != sector[order][:-1], True]]]
-    outline = outline[(outline - centroid) @ (np.asarray(sensor, dtype=float)[:2] - centroid) < 0]
-    if occluders is not None and len(outline):
-        outline = outline[~shadowed(outline, float(np.median(np.asarray(disc_xy)[:, 2])), occluders, sensor,
-                                    shadow_reach)]
+    return outline[(outline - centroid) @ (np.asarray(sensor, dtype=float)[:2] - centroid) < 0]
+
+
+def rim_circle(disc_xy, sensor_xy, r_eps, sectors=36, outline=None):
+    """The circle of the rim of a disc of points seen from above (a can's lid), from its outline
+    (rim_outline; or `outline`, float (K, 2), a part of it the caller chose), fitted algebraically,
+    then by Tukey's biweight (fit_circle_robust; r_eps, m). The outermost samples lie on average
+    half a sample spacing inside the rim (the median distance from some points to their nearest
+    neighbour): added to the radius. disc_xy: float (N, 2+) (m); sensor_xy: (2+,). RimCircle, or
+    None when fewer than 3 outline points or no circle fits."""
+    xy = _xy(disc_xy)
+    outline = rim_outline(xy, sensor_xy, sectors) if outline is None else _xy(outline)
     if len(outline) < 3:
         return None
     cx, cy, r = fit_circle_algebraic(outline)
@@ -710,13 +711,25 @@ def rim_circle(disc_xy, sensor, r_eps, sectors=36, occluders=None, shadow_reach=
     return RimCircle(float(cx), float(cy), float(r + 0.5 * spacing), outline, residual, spacing, float(r_eps))
 
 
-def shadowed(xy, z, occluders, sensor, reach, directions=8):
+def shadowed(xy, z, occluders, sensor, reach, directions=8, cone=0.01):
     """Which of the places xy (float (K, 2), m) at height z (m) have a place `reach` (m) beside them,
     in one of `directions` directions, hidden behind one of the occluders (float (N, 3)) seen from
-    the sensor ((3,), same frame; behind): the edge of that occluder's shadow. bool (K,)."""
+    the sensor ((3,), same frame; behind, within `cone`, rad): the edge of that occluder's shadow.
+    bool (K,)."""
+    sensor = np.asarray(sensor, dtype=float)
     angle = np.linspace(0.0, 2 * np.pi, directions, endpoint=False)
     around = (_xy(xy)[:, None, :] + reach * np.c_[np.cos(angle), np.sin(angle)][None]).reshape(-1, 2)
-    hidden = behind(np.c_[around, np.full(len(around), z)], occluders, np.asarray(sensor, dtype=float))
+    places = np.c_[around, np.full(len(around), z)]
+    # Only an occluder within cone of the bundle of rays to the places can hide one: the rest are
+    # left out before behind's (occluders x places) comparison.
+    rays = places - sensor
+    rays /= np.linalg.norm(rays, axis=1)[:, None]
+    middle = rays.sum(axis=0)
+    middle /= np.linalg.norm(middle)
+    spread = float(np.arccos(np.clip((rays @ middle).min(), -1.0, 1.0)))
+    to = occluders - sensor
+    near = to @ middle >= np.cos(min(spread + cone, np.pi)) * np.linalg.norm(to, axis=1)
+    hidden = behind(places, occluders[near], sensor, cone=cone)
     return hidden.reshape(len(xy), directions).any(axis=1)
 
 

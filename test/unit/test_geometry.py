@@ -710,12 +710,12 @@ def test_rim_circle_of_a_lid_seen_in_part():
     assert g.rim_circle(disc[:2], np.array([0.0, -0.8]), 0.006) is None
 
 
-def test_rim_circle_leaves_out_the_edge_of_a_taller_objects_shadow():
+def test_rim_outline_less_the_edge_of_a_taller_objects_shadow():
     """A lid (r 4 cm, 5 mm grid, 9.5 cm up) whose far right quarter lies in the shadow of a taller
-    object in front (its points on the sensor's rays to that quarter, 13 cm up): the outline where
-    the shadow cuts the lid lies up to 2 cm inside the rim; with the object as occluders it is left
-    out and every outline point left lies within a grid step of the rim (shadowed: the places beside
-    it; one at the left, away from the shadow, is not)."""
+    object in front (its points on the sensor's rays to that quarter, 13 cm up): the outline
+    (rim_outline) where the shadow cuts the lid lies up to 2 cm inside the rim; the samples beside
+    the shadow (shadowed) left out, every outline sample left lies within a grid step of the rim; a
+    place at the left, away from the shadow, is not beside it."""
     r, z, sensor = 0.04, 0.095, np.array([0.0, -0.6, 0.42])
     grid = np.mgrid[-0.05:0.05:0.005, -0.05:0.05:0.005].reshape(2, -1).T + 0.0011
     hidden = (grid[:, 0] > 0.008) & (grid[:, 1] > 0.0)
@@ -724,10 +724,12 @@ def test_rim_circle_leaves_out_the_edge_of_a_taller_objects_shadow():
     fine = np.mgrid[0.008:0.06:0.002, 0.0:0.06:0.002].reshape(2, -1).T  # the shadow, and beyond the rim
     shadow = np.c_[fine, np.full(len(fine), z)]
     occluders = sensor + (shadow - sensor) * ((sensor[2] - 0.13) / (sensor[2] - z))
-    plain = g.rim_circle(lid, sensor, 0.006)
-    assert (np.hypot(*plain.outline.T) < r - 0.01).any()
-    rim = g.rim_circle(lid, sensor, 0.006, occluders=occluders)
-    assert len(rim.outline) < len(plain.outline)
+    outline = g.rim_outline(lid, sensor)
+    assert_array_equal(g.rim_circle(lid, sensor, 0.006).outline, outline)
+    assert (np.hypot(*outline.T) < r - 0.01).any()
+    edge = g.shadowed(outline, z, occluders, sensor, 0.006)
+    rim = g.rim_circle(lid, sensor, 0.006, outline=outline[~edge])
+    assert 3 <= len(rim.outline) < len(outline)
     assert np.all(np.abs(np.hypot(*rim.outline.T) - r) < 0.005)
     assert not g.shadowed(np.array([[-0.045, 0.0]]), z, occluders, sensor, 0.006).any()
 
