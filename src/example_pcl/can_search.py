@@ -95,7 +95,8 @@ class CylinderSearchConfig:
     object in front hides the rest; min_occluded_arc (rad): or at least this when every part of the
     side's near half not seen lies behind something closer to the sensor (_rest_hidden: a can behind
     another, touching it; a lying one's too, lying._rest_hidden). A side too narrow to fit a circle
-    to is fitted with its lid's rim when that shows over at least min_hidden_arc (_side_and_rim).
+    to, under a lid a taller object in front shadows, is fitted with the rim of the rest of that lid
+    when it shows over at least min_hidden_arc (_side_and_rim).
     robust_k, robust_min_scale (m), min_outliers: the least-squares circle is refitted by Tukey's
     biweight (geometry.fit_circle_robust, cut-off robust_k x scale, the scale at least
     robust_min_scale) and replaced when at least min_outliers side points lie beyond the cut-off

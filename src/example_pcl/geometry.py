@@ -712,10 +712,10 @@ def rim_circle(disc_xy, sensor_xy, r_eps, sectors=36, outline=None):
 
 
 def shadowed(xy, z, occluders, sensor, reach, directions=8, cone=0.01):
-    """Which of the places xy (float (K, 2), m) at height z (m) have a place `reach` (m) beside them,
-    in one of `directions` directions, hidden behind one of the occluders (float (N, 3)) seen from
-    the sensor ((3,), same frame; behind, within `cone`, rad): the edge of that occluder's shadow.
-    bool (K,)."""
+    """Which of the places xy (float (K, 2), K >= 1, m) at height z (m) have a place `reach` (m) beside
+    them, in one of `directions` directions, hidden behind one of the occluders (float (N, 3)) seen
+    from the sensor ((3,), same frame; behind, within `cone`, rad): the edge of that occluder's
+    shadow. bool (K,)."""
     sensor = np.asarray(sensor, dtype=float)
     angle = np.linspace(0.0, 2 * np.pi, directions, endpoint=False)
     around = (_xy(xy)[:, None, :] + reach * np.c_[np.cos(angle), np.sin(angle)][None]).reshape(-1, 2)

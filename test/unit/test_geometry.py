@@ -728,6 +728,11 @@ def test_rim_outline_less_the_edge_of_a_taller_objects_shadow():
     assert_array_equal(g.rim_circle(lid, sensor, 0.006).outline, outline)
     assert (np.hypot(*outline.T) < r - 0.01).any()
     edge = g.shadowed(outline, z, occluders, sensor, 0.006)
+    # The same as behind over every occluder (shadowed leaves out those off the rays' bundle first).
+    angle = np.linspace(0.0, 2 * np.pi, 8, endpoint=False)
+    around = (outline[:, None, :] + 0.006 * np.c_[np.cos(angle), np.sin(angle)][None]).reshape(-1, 2)
+    every = g.behind(np.c_[around, np.full(len(around), z)], occluders, sensor).reshape(-1, 8).any(axis=1)
+    assert_array_equal(edge, every)
     rim = g.rim_circle(lid, sensor, 0.006, outline=outline[~edge])
     assert 3 <= len(rim.outline) < len(outline)
     assert np.all(np.abs(np.hypot(*rim.outline.T) - r) < 0.005)
