@@ -645,7 +645,7 @@ def _side_and_rim(pts, side_xy, top, sigma, r_eps, ctx):
     # The side evenly subsampled to at most 4 points per outline point: the rim weighs in the fit.
     joint = rim.with_side(side_xy[::int(np.ceil(len(side_xy) / (4 * len(rim.outline))))], from_both=True)
     if (joint is None or not c.min_radius <= joint.radius <= c.max_radius or joint.arc() < s.min_hidden_arc
-            or np.mean(np.hypot(lid[:, 0] - joint.cx, lid[:, 1] - joint.cy) <= joint.radius + r_eps) < 0.95):
+            or not _holds_lid(lid, joint.cx, joint.cy, joint.radius, r_eps)):
         return None
     return joint.cx, joint.cy, joint.radius
 
@@ -1211,9 +1211,15 @@ def _lid_rim(rim, lid, sigma, r_eps, ctx):
     cx, cy, r = rim.cx, rim.cy, rim.radius
     return (c.min_radius <= r <= c.max_radius and rim.fits(sigma, s.lid_arc)
             and g.facet_ratio(rim.outline, cx, cy, rim.outline_radius) >= s.max_facet_ratio
-            and np.mean(np.hypot(lid[:, 0] - cx, lid[:, 1] - cy) <= r + r_eps) >= 0.95
+            and _holds_lid(lid, cx, cy, r, r_eps)
             and not any(not other.lying and np.hypot(*(other.center_plane - (cx, cy))) < r + other.radius - r_eps
                         for other in ctx.found))
+
+
+def _holds_lid(lid, cx, cy, r, r_eps):
+    """Whether 95 % of a lid's points (float (N, 3), m) lie within r + r_eps of (cx, cy) (m): a lid
+    wider than the circle is no can's."""
+    return np.mean(np.hypot(lid[:, 0] - cx, lid[:, 1] - cy) <= r + r_eps) >= 0.95
 
 
 def _rim_with_side(rim, side_xy, lid, sigma, r_eps, ctx):

@@ -391,14 +391,23 @@ def behind(places, occluders, sensor, cone=0.01, margin=0.01):
     """Which of the places (float (K, 3), m) lie behind one of the occluders (float (N, 3), same frame)
     seen from the sensor ((3,), same frame): one within `cone` (rad) of the sensor's ray to it and at
     least `margin` (m) nearer. bool (K,)."""
-    if len(occluders) == 0:
+    if len(occluders) == 0 or len(places) == 0:
         return np.zeros(len(places), bool)
+    q = places - sensor
+    q_range = np.linalg.norm(q, axis=1)
+    q = q / q_range[:, None]
     rays = occluders - sensor
     ranges = np.linalg.norm(rays, axis=1)
     rays /= ranges[:, None]
-    q = places - sensor
-    q_range = np.linalg.norm(q, axis=1)
-    close = rays @ (q / q_range[:, None]).T >= np.cos(cone)  # (N, K)
+    middle = q.sum(axis=0)
+    if np.linalg.norm(middle) > 0:
+        # Only an occluder within cone of the bundle of rays to the places can hide one (its angle to
+        # the bundle's middle at most the bundle's spread plus cone): the rest leave the (N, K) test.
+        middle /= np.linalg.norm(middle)
+        spread = float(np.arccos(np.clip((q @ middle).min(), -1.0, 1.0)))
+        near = rays @ middle >= np.cos(min(spread + cone + 1e-6, np.pi))
+        rays, ranges = rays[near], ranges[near]
+    close = rays @ q.T >= np.cos(cone)  # (N, K)
     return (close & (ranges[:, None] < q_range[None, :] - margin)).any(axis=0)
 
 
@@ -712,24 +721,13 @@ def rim_circle(disc_xy, sensor_xy, r_eps, sectors=36, outline=None):
 
 
 def shadowed(xy, z, occluders, sensor, reach, directions=8, cone=0.01):
-    """Which of the places xy (float (K, 2), K >= 1, m) at height z (m) have a place `reach` (m) beside
+    """Which of the places xy (float (K, 2), m) at height z (m) have a place `reach` (m) beside
     them, in one of `directions` directions, hidden behind one of the occluders (float (N, 3)) seen
     from the sensor ((3,), same frame; behind, within `cone`, rad): the edge of that occluder's
     shadow. bool (K,)."""
-    sensor = np.asarray(sensor, dtype=float)
     angle = np.linspace(0.0, 2 * np.pi, directions, endpoint=False)
     around = (_xy(xy)[:, None, :] + reach * np.c_[np.cos(angle), np.sin(angle)][None]).reshape(-1, 2)
-    places = np.c_[around, np.full(len(around), z)]
-    # Only an occluder within cone of the bundle of rays to the places can hide one: the rest are
-    # left out before behind's (occluders x places) comparison.
-    rays = places - sensor
-    rays /= np.linalg.norm(rays, axis=1)[:, None]
-    middle = rays.sum(axis=0)
-    middle /= np.linalg.norm(middle)
-    spread = float(np.arccos(np.clip((rays @ middle).min(), -1.0, 1.0)))
-    to = occluders - sensor
-    near = to @ middle >= np.cos(min(spread + cone, np.pi)) * np.linalg.norm(to, axis=1)
-    hidden = behind(places, occluders[near], sensor, cone=cone)
+    hidden = behind(np.c_[around, np.full(len(around), z)], occluders, np.asarray(sensor, dtype=float), cone=cone)
     return hidden.reshape(len(xy), directions).any(axis=1)
 
 

@@ -245,10 +245,10 @@ def _without_ends(q, z, origin, fit, r_eps, iterations, max_radius, max_gap, sen
                     rms=rms, n_inliers=n, extent=extent)
 
 
-def _from_origin(sensor, origin):
-    """The sensor ((x, y, z), plane frame, m, or None) in the fits' coordinates: x and y less the
-    origin ((2,), m). A tuple, or None."""
-    return None if sensor is None else (sensor[0] - origin[0], sensor[1] - origin[1], sensor[2])
+def _from_origin(points, origin):
+    """Points (the sensor (3,) or occluders (N, 3), plane frame, m; or None) in the fits' coordinates:
+    x and y less the origin ((2,), m). float64, or None."""
+    return None if points is None else np.asarray(points, dtype=float) - (origin[0], origin[1], 0.0)
 
 
 def _on_axis(q, theta):
@@ -312,7 +312,7 @@ def _through_hidden(run, may_join, bands, on, dl, dz, fit, a0, band, r_eps, sens
     if not (first > 0 and may_join[first - 1]) and not (last + 1 < len(may_join) and may_join[last + 1]):
         return run  # most runs end at an empty band: the occluders are not looked at
     t, d, zc, r = fit[:4]
-    occ = occluders - np.array([origin[0], origin[1], 0.0])
+    occ = _from_origin(occluders, origin)
     # Not the can itself (its own near side would hide its far parts).
     occ = occ[np.hypot(_on_axis(occ[:, :2], t)[1] - d, occ[:, 2] - zc) > r + r_eps]
 
@@ -641,7 +641,7 @@ def _rest_hidden(fit, side_lateral, side_z, a_lo, a_hi, r_eps, sensor, occluders
     one (as can_search's upright _rest_hidden)."""
     axial, _, _, rho = fit.coordinates(occluders)
     own = (rho <= fit.radius + r_eps) & (axial >= a_lo - r_eps) & (axial <= a_hi + r_eps)
-    others = occluders[~own] - np.array([fit.origin[0], fit.origin[1], 0.0])
+    others = _from_origin(occluders[~own], fit.origin)
     return _hidden_where_unseen((fit.theta, fit.offset, fit.zc, fit.radius), (a_lo + r_eps, a_hi - r_eps),
                                 np.arctan2(side_z - fit.zc, side_lateral - fit.offset),
                                 _from_origin(sensor, fit.origin), others)
