@@ -839,7 +839,8 @@ def fit_circle_geometric(xy, c0, r0, r_eps, max_iterations=50, tol=1e-6, min_inl
     return float(a + c0[0]), float(b + c0[1]), float(r)
 
 
-def fit_circle_robust(xy, c0, r0, r_eps, k=4.685, min_scale=5e-4, max_iterations=20, tol=1e-6, max_shift=None):
+def fit_circle_robust(xy, c0, r0, r_eps, k=4.685, min_scale=5e-4, max_iterations=20, tol=1e-6, max_shift=None,
+                      fixed_radius=False):
     """A circle by Tukey's biweight M-estimator (iteratively reweighted Gauss-Newton) from (c0, r0):
     (cx, cy, r, scale) in metres.
 
@@ -849,6 +850,8 @@ def fit_circle_robust(xy, c0, r0, r_eps, k=4.685, min_scale=5e-4, max_iterations
     within r_eps (m), floored at min_scale (m: depth quantization can make the median vanish).
     xy: float64 (N, 2) or (N, 3) finite points (m, plane frame; z ignored). Raises PerceptionError
     when fewer than 3 points keep a weight or the centre moves more than max_shift (default r0).
+    fixed_radius: the radius stays r0, only the centre is fitted (a stripe of side too narrow to fix
+    a radius, of a can whose radius is known).
     """
     if not (r_eps > 0 and r0 > 0 and k > 0 and min_scale > 0):
         raise PerceptionError(f"r_eps, r0, k and min_scale must be > 0, got {r_eps}, {r0}, {k}, {min_scale}")
@@ -875,10 +878,12 @@ def fit_circle_robust(xy, c0, r0, r_eps, k=4.685, min_scale=5e-4, max_iterations
             raise PerceptionError("fewer than 3 points keep a weight in the robust circle fit")
         rows[0], rows[1], rows[2], rows[3] = du / d, dv / d, 1.0, res  # -J and the residual
         sums = (rows * w) @ rows.T
+        n = 2 if fixed_radius else 3
         try:
-            step = np.linalg.solve(sums[:3, :3] + 1e-12 * np.eye(3), sums[:3, 3])
+            step = np.linalg.solve(sums[:n, :n] + 1e-12 * np.eye(n), sums[:n, 3])
         except np.linalg.LinAlgError:
             raise PerceptionError("the robust circle fit is singular (the points are collinear)") from None
+        step = np.append(step, 0.0) if fixed_radius else step
         a, b, r = a + step[0], b + step[1], r + step[2]
         if not (np.isfinite((a, b, r)).all() and np.hypot(a, b) <= max_shift and r > 0):
             raise PerceptionError(f"the robust circle fit diverged (centre moved more than {1e3 * max_shift:.1f} mm)")

@@ -175,19 +175,22 @@ def test_background_search_keeps_the_cans_it_did_not_lose(frames, manual_executo
 
 def test_adopt_keeps_the_fresher_refit_of_a_can(frames):
     """A search of an earlier frame gives its table and new cans; a can refitted since keeps that fit
-    (its pose, radius and points), with the search's height (a refit keeps the height it is given)."""
+    (its pose and points), with the search's height and radius (a refit keeps the height it is
+    given, and the radius of a can seen over a narrow arc)."""
     finder = lf.LocalFinder()
     old = lf.search_frame(frames[0].xyz)
     finder.process(frames[0].xyz)
     refitted = finder.process(frames[3].xyz)
     assert not refitted.searched
-    finder.adopt(dataclasses.replace(old, cans=[dataclasses.replace(c, height=c.height + 0.01) for c in old.cans]))
+    finder.adopt(dataclasses.replace(old, cans=[dataclasses.replace(c, height=c.height + 0.01, radius=c.radius + 0.002)
+                                                for c in old.cans]))
     assert finder._table is old.table and finder._known is old.known
     for kept, searched in zip(finder._cans, old.cans):
         fresher = nearest(refitted.cans, searched.base_center)
         np.testing.assert_array_equal(kept.T_sensor_from_can, fresher.T_sensor_from_can)
-        assert kept.radius == fresher.radius and kept.indices is fresher.indices
+        assert kept.indices is fresher.indices
         assert kept.height == pytest.approx(searched.height + 0.01)
+        assert kept.radius == pytest.approx(searched.radius + 0.002)
 
 
 def test_a_search_begun_before_a_reset_is_dropped(frames, manual_executor):
@@ -300,6 +303,26 @@ def test_a_narrow_stripe_of_side_is_refitted_by_the_lids_rim(case, seed):
         axis = transforms.apply(to_table, refitted.base_center)[:2]
         assert min(np.hypot(*(axis - t)) for t in truth) < 0.001
         assert refitted.base_seen == can.base_seen and refitted.support_height == can.support_height
+
+
+def test_a_narrow_stripe_of_side_keeps_its_radius_frame_after_frame():
+    """A can the search found with its side seen over less than min_hidden_arc, its lid's rim
+    shadowed (held-out 1207 of "cluttered table", r 43 mm seen over 0.55 rad), is followed frame after
+    frame of fresh noise with the search's radius, within 1 mm of the truth's axis. Refitted with a
+    free radius, its radius wandered by 5 mm and the can was lost on the fifth frame."""
+    spec = so.case_spec("cluttered table", 1207)
+    finder = lf.LocalFinder()
+    radius = None
+    for frame in range(8):
+        scene = sc.generate_scene(dataclasses.replace(spec, seed=spec.seed + 1000 * frame))
+        fit = finder.process(scene.xyz)
+        assert fit.searched == (frame == 0), fit.reason
+        truth = next(np.asarray(t["base_center"]) for t in scene.truth["objects"] if t["is_can"])
+        can = nearest(fit.cans, truth)
+        assert can.arc_coverage < af.AutoConfig().cylinders.min_hidden_arc
+        assert np.linalg.norm(can.base_center - truth) < 0.001, frame
+        radius = can.radius if radius is None else radius
+        assert can.radius == radius
 
 
 @pytest.mark.parametrize("seed", [904, 1007])
