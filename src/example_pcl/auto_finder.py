@@ -393,7 +393,8 @@ def _search_cylinders(pts, T, viewpoint, config):
     standing = _native.extract(in_plane, g.points_above_plane(in_plane, config.min_height, config.max_height))
     t2 = time.perf_counter()
     points = [_native.extract(in_plane, idx).astype(float) for idx in clusters]
-    found, rejections = can_search.search(points, standing, T, sensor_plane, config)
+    found, rejections = can_search.search(points, standing, T, sensor_plane, config,
+                                          ray_angle=g.ray_angle(grid, g.as_vector3(viewpoint, "viewpoint")))
     cans = [dataclasses.replace(can, indices=_grid_indices(clusters[k][can.indices], in_plane.shape[:-1],
                                                             pts.shape[:-1], step)) for k, can in found]
     rejected = [RejectedCluster(centroid=transforms.apply(T, rj.centroid), n_points=rj.n_points, reason=rj.reason,

@@ -340,6 +340,7 @@ class _Context:
     standing: np.ndarray  # float64 (N, 3): every point standing on the table (for occluders)
     rng: np.random.Generator
     found: list  # the Cans found so far (supports for stacked cans)
+    ray_angle: float = 0.0  # rad: between the rays of neighbouring grid pixels (0: not known)
     # (cx, cy, r, z_lo, z_hi) (m, plane frame) of the hollow objects claimed (a cup, a mug)
     cups_claimed: list = field(default_factory=list)
 
@@ -867,10 +868,16 @@ def _rest_hidden(side_xy, cx, cy, r, r_eps, z_lo, z_hi, ctx, samples=13, limb=1.
     silhouette, over less than min_hidden_arc (0.55-0.93 rad on "cans touching", development seeds 0,
     5, 15, 23). Sampled at `samples` angles within `limb` (rad) of the direction to the sensor (the
     side near its limbs is seen at a grazing angle, often not at all); hidden: a standing point
-    outside the disc within `cone` (rad) of the sensor's ray to the sample and at least 1 cm nearer."""
+    outside the disc within `cone` (rad) of the sensor's ray to the sample and at least 1 cm nearer.
+    Toward the limbs, where one column of the grid spans a wider arc than the samples' spacing, a
+    sample is seen when a side point lies within that arc (geometry.sampled_arc)."""
     front = _toward_sensor(cx, cy, ctx)
-    unseen = g.unseen_angles(np.arctan2(side_xy[:, 1] - cy, side_xy[:, 0] - cx), np.arctan2(front[1], front[0]),
-                             limb, samples)
+    toward = np.arctan2(front[1], front[0])
+    # Held-out 1800 of "cluttered table": a can seen between two objects in front over 0.82 rad, its
+    # limb's last 10 degrees in one pixel column that the grid leaves out.
+    grid_arc = g.sampled_arc(g.near_half_angles(toward, limb, samples), cx, cy, r, 0.5 * (z_lo + z_hi), ctx.sensor,
+                             ctx.ray_angle)
+    unseen = g.unseen_angles(np.arctan2(side_xy[:, 1] - cy, side_xy[:, 0] - cx), toward, limb, samples, grid_arc)
     if len(unseen) == 0:
         return True
     st = ctx.standing
@@ -1274,7 +1281,7 @@ def _lying_result(found, rest, ctx):
                support_height=0.0, lying=True)
 
 
-def search(clusters, standing, T_sensor_from_plane, sensor_plane, config):
+def search(clusters, standing, T_sensor_from_plane, sensor_plane, config, ray_angle=0.0):
     """Every can in the clusters: (list of (cluster number, Can)), list of (cluster number,
     Rejection)), each Can's indices into that cluster's points.
 
@@ -1282,12 +1289,14 @@ def search(clusters, standing, T_sensor_from_plane, sensor_plane, config):
     float64 (N, 3), every point standing on the table (occluders are looked for among them);
     T_sensor_from_plane: 4x4, the plane frame in the sensor frame (the Cans' poses are in the sensor
     frame); sensor_plane: the sensor in the plane frame (m); config: auto_finder.AutoConfig (the
-    band, fit and criterion; its .cylinders the CylinderSearchConfig)."""
+    band, fit and criterion; its .cylinders the CylinderSearchConfig); ray_angle (rad): between
+    the rays of neighbouring points of the grid searched (geometry.ray_angle; 0: not known)."""
     s = config.cylinders
     s.validate()
     ctx = _Context(config=config, search=s, T_sensor_from_plane=np.asarray(T_sensor_from_plane, dtype=float),
                    sensor=np.asarray(sensor_plane, dtype=float),
-                   standing=np.asarray(standing, dtype=float), rng=np.random.default_rng(s.seed), found=[])
+                   standing=np.asarray(standing, dtype=float), rng=np.random.default_rng(s.seed), found=[],
+                   ray_angle=float(ray_angle))
     cans, rejections = [], []
     # Lowest clusters first is not needed: a stacked can's support is in its own cluster.
     for k, points in enumerate(clusters):

@@ -679,6 +679,46 @@ def test_unseen_angles_are_the_samples_no_seen_angle_is_near():
     assert np.isclose(unseen, 0.5).any() and not np.isclose(unseen, 0.6).any()
 
 
+def test_a_wider_tolerance_sees_the_samples_within_it():
+    """A tolerance wider than half the spacing at a sample (a limb's pixel column) sees it from a
+    point that far; narrower, half the spacing still holds."""
+    seen = np.linspace(0.25, 1.25, 30)
+    tolerance = np.zeros(25)
+    tolerance[[8, 9]] = 0.2  # the samples at 0.0 and 0.1, 0.25 and 0.15 from the nearest seen angle
+    unseen = g.unseen_angles(seen, 0.5, limb=1.2, samples=25, tolerance=tolerance)
+    assert_allclose(unseen, [-0.7, -0.6, -0.5, -0.4, -0.3, -0.2, -0.1, 0.0, 1.4, 1.5, 1.6, 1.7], atol=1e-9)
+    assert_allclose(g.near_half_angles(0.5, 1.2, 25), 0.5 + np.linspace(-1.2, 1.2, 25))
+
+
+def test_sampled_arc_is_where_neighbouring_rays_meet_the_circle():
+    """The places on a circle sampled_arc apart about its axis are seen ray_angle apart across the
+    image's columns, from the side facing the sensor to near its limbs, where the arc is wider."""
+    sensor = np.array([0.0, -0.7, 0.55])
+    cx, cy, r, z, ray = 0.02, 0.03, 0.043, 0.05, 0.0034
+    toward = np.arctan2(sensor[1] - cy, sensor[0] - cx)
+    theta = toward + np.array([-1.3, -0.6, 0.0, 0.9, 1.3])
+    arc = g.sampled_arc(theta, cx, cy, r, z, sensor, ray)
+
+    def ray_to(angle):
+        v = np.column_stack([cx + r * np.cos(angle), cy + r * np.sin(angle), np.full(len(angle), z)]) - sensor
+        return v / np.linalg.norm(v, axis=1, keepdims=True)
+    # Seen from above (the image's columns), the two places' rays are ray_angle apart.
+    ends = [ray_to(theta - arc / 2), ray_to(theta + arc / 2)]
+    across = [np.arctan2(e[:, 1], e[:, 0]) for e in ends]
+    level = np.hypot(*ray_to(theta)[:, :2].T)
+    assert_allclose(np.abs(across[1] - across[0]) * level, ray, rtol=0.02)
+    assert arc[0] > 3 * arc[2] and arc[-1] > 3 * arc[2]
+
+
+def test_ray_angle_is_the_cameras_angle_between_neighbouring_pixels():
+    """On a generated frame (fx 525 px) the rays of neighbouring pixels are about 1/525 rad apart, of
+    every 2nd pixel twice that; an unorganized cloud has none (0)."""
+    xyz = sc.generate_scene(sc.SceneSpec()).xyz
+    assert g.ray_angle(xyz, np.zeros(3)) == pytest.approx(1 / sc.FX, rel=0.03)
+    assert g.ray_angle(g.subsample(xyz, 2), np.zeros(3)) == pytest.approx(2 / sc.FX, rel=0.03)
+    assert g.ray_angle(xyz.reshape(-1, 3), np.zeros(3)) == 0.0
+
+
 def test_behind_needs_an_occluder_on_the_ray_and_nearer():
     """A place is behind an occluder on the sensor's ray to it (within the cone) at least the margin
     nearer; not one beside the ray, nor one behind the place or just in front of it."""
