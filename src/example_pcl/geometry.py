@@ -397,12 +397,12 @@ def unseen_angles(seen, toward, limb=1.3, samples=13, tolerance=None):
 
 def sampled_arc(theta, cx, cy, r, z, sensor, ray_angle):
     """The angle (rad, float64 (K,)) about the vertical axis (cx, cy) between the places that
-    neighbouring rays of a grid `ray_angle` (rad) apart meet on its circle of radius r (m) at height z,
-    at the angles theta (rad, (K,)): r_s dtheta |t x u| / range = ray_angle, t the circle's tangent
-    and u the ray (unit) from the sensor ((3,), same frame). Toward the limbs the side turns away from
-    the sensor and one pixel column spans a wider arc (12 degrees at 70 degrees from the sensor, 43 mm
-    radius, 0.9 m away, every 2nd pixel of a Kinect). Across the image's columns: the tangent's part
-    across the ray seen from above (the camera does not roll), as the side is tall enough for every row."""
+    neighbouring columns of a grid `ray_angle` (rad) apart meet on its circle of radius r (m) at
+    height z, at the angles theta (rad, (K,)): r dtheta |t x u| / range = ray_angle, t the circle's
+    tangent and u the ray from the sensor ((3,), same frame) seen from above (the camera does not
+    roll; a side is tall enough for every row). Toward the limbs the side turns away from the sensor
+    and one column spans a wider arc: 4 degrees facing it, 15 at 70 degrees from it (r 43 mm, 0.9 m
+    away, every 2nd pixel of a Kinect)."""
     theta = np.asarray(theta, dtype=float)
     places = np.column_stack([cx + r * np.cos(theta), cy + r * np.sin(theta), np.full(len(theta), float(z))])
     rays = places - np.asarray(sensor, dtype=float)
@@ -422,7 +422,8 @@ def ray_angle(organized, viewpoint, row_step=48):
     if np.ndim(organized) != 3:
         return 0.0
     rays = np.asarray(organized[::row_step], dtype=float) - np.asarray(viewpoint, dtype=float)
-    rays /= np.linalg.norm(rays, axis=2, keepdims=True)
+    with np.errstate(invalid="ignore", divide="ignore"):  # holes (NaN, or zeros at the viewpoint) drop out
+        rays /= np.linalg.norm(rays, axis=2, keepdims=True)
     cosine = np.einsum("ijk,ijk->ij", rays[:, 1:], rays[:, :-1])
     cosine = cosine[np.isfinite(cosine)]
     return float(np.arccos(np.clip(np.percentile(cosine, 10), -1.0, 1.0))) if len(cosine) else 0.0

@@ -4,6 +4,7 @@ Needs the compiled extension (source build/ws/devel/setup.bash). Scenes come fro
 example_pcl.scene, so every accuracy claim is checked against a known ground truth.
 """
 import dataclasses
+import warnings
 
 import numpy as np
 import pytest
@@ -712,11 +713,17 @@ def test_sampled_arc_is_where_neighbouring_rays_meet_the_circle():
 
 def test_ray_angle_is_the_cameras_angle_between_neighbouring_pixels():
     """On a generated frame (fx 525 px) the rays of neighbouring pixels are about 1/525 rad apart, of
-    every 2nd pixel twice that; an unorganized cloud has none (0)."""
+    every 2nd pixel twice that; an unorganized cloud or one of holes only (NaN, or zeros at the
+    viewpoint) has none (0)."""
     xyz = sc.generate_scene(sc.SceneSpec()).xyz
     assert g.ray_angle(xyz, np.zeros(3)) == pytest.approx(1 / sc.FX, rel=0.03)
     assert g.ray_angle(g.subsample(xyz, 2), np.zeros(3)) == pytest.approx(2 / sc.FX, rel=0.03)
     assert g.ray_angle(xyz.reshape(-1, 3), np.zeros(3)) == 0.0
+    holes = np.zeros((100, 100, 3), np.float32)
+    holes[50:] = np.nan
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert g.ray_angle(holes, np.zeros(3), row_step=4) == 0.0
 
 
 def test_behind_needs_an_occluder_on_the_ray_and_nearer():
