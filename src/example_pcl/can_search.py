@@ -609,14 +609,15 @@ def _pinned_by_lid(pts, side_xy, cx, cy, r, top, sigma, r_eps, max_rms, ctx):
     side (side_xy: float (M, 2), m) and its lid's rim (RimCircle.with_side; the lid among pts, float
     (N, 3), at height top, as _lid_only takes it), or None to keep it: an arc under min_hidden_arc
     fixes the radius poorly (cans behind others 3-5 mm off their axis, "cans touching" 0 and 75). Only
-    when the lid's rim passes _lid_only's tests on the new circle and the
-    side lies on it within max_rms (m); rms: the side's on it."""
+    when the lid's rim passes _lid_only's tests on the new circle (seen over min_hidden_arc will do
+    when rim and side together span min_arc) and the side lies on it within max_rms (m); rms: the
+    side's on it."""
     lid = _bare_lid(pts, top, sigma, ctx.search.band_height)
     if len(lid) < ctx.config.min_fit_points:
         return None
     rim = g.rim_circle(lid, ctx.sensor[:2], r_eps)
-    joint = None if rim is None else _rim_with_side(rim, side_xy, lid, sigma, r_eps, ctx)
-    if joint is None:
+    joint = None if rim is None else rim.with_side(side_xy)
+    if joint is None or not _lid_rim(joint, lid, sigma, r_eps, ctx, beside=side_xy):
         return None
     residual = np.hypot(side_xy[:, 0] - joint.cx, side_xy[:, 1] - joint.cy) - joint.radius
     rms = float(np.sqrt(np.mean(residual ** 2)))
@@ -1209,14 +1210,21 @@ def _lid_only(free, ctx):
                indices=mine, support="table", base_seen=False, support_height=0.0)
 
 
-def _lid_rim(rim, lid, sigma, r_eps, ctx):
+def _lid_rim(rim, lid, sigma, r_eps, ctx, beside=None):
     """Whether a RimCircle is a can's lid's (_lid_only): a can's radius, round (facet_ratio), rms
     within max(2 mm, 2 sigma) over at least lid_arc, holding 95 % of the lid's points (float (N, 3),
     plane frame, m), and no can found there (overlapping one by more than r_eps, m: two touching
-    cans' circles overlap by their fits' errors)."""
+    cans' circles overlap by their fits' errors). beside: the stripe of side (float (M, 2), m) the rim
+    was refitted with: a rim seen over min_hidden_arc will do when both span min_arc, as a side must
+    (the lid of a can behind a taller one, cut short by its shadow: "cans touching" 5, its rim over
+    1.2 rad, 2.25 with the side)."""
     c, s = ctx.config, ctx.search
     cx, cy, r = rim.cx, rim.cy, rim.radius
-    return (c.min_radius <= r <= c.max_radius and rim.fits(sigma, s.lid_arc)
+    if beside is not None:
+        rim_xy = rim.outline[np.abs(rim.residual) <= rim.r_eps]
+        if g.arc_coverage(np.vstack([rim_xy, np.asarray(beside)[:, :2]]), cx, cy) < c.min_arc:
+            return False
+    return (c.min_radius <= r <= c.max_radius and rim.fits(sigma, s.lid_arc if beside is None else s.min_hidden_arc)
             and g.facet_ratio(rim.outline, cx, cy, rim.outline_radius) >= s.max_facet_ratio
             and _holds_lid(lid, cx, cy, r, r_eps)
             and not any(not other.lying and np.hypot(*(other.center_plane - (cx, cy))) < r + other.radius - r_eps
