@@ -110,7 +110,9 @@ class CylinderSearchConfig:
     than to the circle (rms, below this ratio: geometry.facet_ratio) is two flat faces, a box's
     corner the circle touches, not a can.
     lid_arc (rad): a can seen by its lid alone (its side hidden behind an object in front) shows the
-    lid's rim over at least this on the half away from the sensor (_lid_only); min_rim_side_arc (rad):
+    lid's rim over at least this on the half away from the sensor (_lid_only); lid_levels: the
+    heights tried for such a lid, fullest first (a box beside it may have more points at its top's
+    height); min_rim_side_arc (rad):
     its side seen lower, a stripe of it over at least this, on the rim's circle, is a can's side when
     the rest of its near half is hidden (verify, rim=True).
     lying_gap (m), lying_directions: lying cans are looked for in each cluster and in what the upright
@@ -156,6 +158,7 @@ class CylinderSearchConfig:
     taper_sigmas: float = 3.0
     max_facet_ratio: float = 1.0
     lid_arc: float = 2.5
+    lid_levels: int = 2
     min_rim_side_arc: float = 0.3
     lying_gap: float = 0.01
     lying_directions: int = 36
@@ -167,7 +170,8 @@ class CylinderSearchConfig:
     def validate(self):
         """Raises PerceptionError naming the first value that makes no sense."""
         require_positive(self, ("grid_step", "hypotheses", "pool_points", "wall_cell", "verify", "max_rounds",
-                                "band_height", "min_band_points", "open_depth", "handle_reach", "lying_directions"))
+                                "band_height", "min_band_points", "open_depth", "handle_reach", "lying_directions",
+                                "lid_levels"))
 
 
 @dataclass(frozen=True, eq=False)
@@ -1147,7 +1151,8 @@ def _lid_only(free, ctx):
     (_Free).
 
     The lid: the points within max(5 mm, 3 sigma) of the height of the fullest band at least
-    min_can_height up, without those under a point more than a band higher (a wall's). The circle
+    min_can_height up, without those under a point more than a band higher (a wall's); the next
+    fullest bands (up to lid_levels, not next to one tried) when that is no can's. The circle
     of its rim (geometry.rim_circle, from its outline on the half away from the sensor): a can's
     radius, round (facet_ratio), rms within max(2 mm, 2 sigma), over at least lid_arc, holding 95 %
     of the lid's points; no can found there (overlapping one by more than r_eps). Then its side: seen
@@ -1161,10 +1166,30 @@ def _lid_only(free, ctx):
     if np.count_nonzero(high) < c.min_fit_points:
         return None
     band = np.floor(z / s.band_height).astype(np.int64)
-    fullest = int(np.argmax(np.bincount(band[high])))
-    z_lid = float(np.median(z[np.abs(band - fullest) <= 1]))
     sigma = _sigma(ctx, pts[high].mean(axis=0))
     r_eps = max(c.r_eps, c.r_eps_sigmas * sigma)
+    counts = np.bincount(band[high])
+    tried = []
+    # A can beside a box lower than it (held-out 1909 of "can touching box", seen steeply from above)
+    # has fewer points at its lid's height than the box at its top's.
+    for level in np.argsort(-counts, kind="stable"):
+        if len(tried) == s.lid_levels or (tried and counts[level] < c.min_fit_points):
+            break
+        if any(abs(int(level) - t) <= 1 for t in tried):
+            continue
+        tried.append(int(level))
+        can = _lid_at(free, band, int(level), sigma, r_eps, ctx)
+        if can is not None:
+            return can
+    return None
+
+
+def _lid_at(free, band, level, sigma, r_eps, ctx):
+    """_lid_only at the band `level` (band: each free point's, bands of band_height up from the
+    table): a Can or None. sigma, r_eps (m): the depth noise and the circle's tolerance there."""
+    c, s = ctx.config, ctx.search
+    pts, z = free.points, free.z
+    z_lid = float(np.median(z[np.abs(band - level) <= 1]))
     lid = _bare_lid(pts, z_lid, sigma, s.band_height)
     # Wider than a can seen from above (a tin's, a box's top): no lid of one.
     if len(lid) < c.min_fit_points or np.any(np.ptp(lid[:, :2], axis=0) > 2 * (c.max_radius + r_eps)):
