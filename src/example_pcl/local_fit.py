@@ -218,8 +218,8 @@ def _refit_can(pts, T_sensor_from_plane, T_plane_from_sensor, sensor_plane, can,
     # box face or a neighbour can within r_eps of the circle pulls least squares onto itself.
     robust = a.cylinders
     # A stripe of side narrower than min_hidden_arc does not fix a radius: refitted freely frame after
-    # frame, the radius wandered by 5 mm and the axis with it (held-out 1207 of "cluttered table"); the
-    # search's radius is kept.
+    # frame, the radius wandered by up to 7 mm and the axis up to 4.5 mm (held-out 1207 of "cluttered
+    # table"); the search's radius is kept.
     cx, cy, radius, scale = g.fit_circle_robust(side, center[:2], can.radius, r_eps, k=robust.robust_k,
                                                 min_scale=robust.robust_min_scale, max_iterations=a.fit_iterations,
                                                 tol=c.fit_tolerance, max_shift=c.region_margin,
