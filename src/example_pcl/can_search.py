@@ -620,8 +620,8 @@ def _pinned_by_lid(pts, side_xy, cx, cy, r, top, sigma, r_eps, max_rms, ctx):
     if len(lid) < ctx.config.min_fit_points:
         return None
     rim = g.rim_circle(lid, ctx.sensor[:2], r_eps)
-    joint = None if rim is None else rim.with_side(side_xy)
-    if joint is None or not _lid_rim(joint, lid, sigma, r_eps, ctx, beside=side_xy):
+    joint = None if rim is None else _rim_with_side(rim, side_xy, lid, sigma, r_eps, ctx, side_counts=True)
+    if joint is None:
         return None
     residual = np.hypot(side_xy[:, 0] - joint.cx, side_xy[:, 1] - joint.cy) - joint.radius
     rms = float(np.sqrt(np.mean(residual ** 2)))
@@ -1262,12 +1262,14 @@ def _holds_lid(lid, cx, cy, r, r_eps):
     return np.mean(np.hypot(lid[:, 0] - cx, lid[:, 1] - cy) <= r + r_eps) >= 0.95
 
 
-def _rim_with_side(rim, side_xy, lid, sigma, r_eps, ctx):
+def _rim_with_side(rim, side_xy, lid, sigma, r_eps, ctx, side_counts=False):
     """The lid's rim (geometry.RimCircle) refitted to its outline and a stripe of side under it
     (side_xy, m; RimCircle.with_side), or None when that fits no circle or the lid (its points, float
-    (N, 3), m) fails the rim's tests on it (_lid_rim)."""
+    (N, 3), m) fails the rim's tests on it (_lid_rim; side_counts: the side counts toward its arc,
+    _lid_rim's beside)."""
     joint = rim.with_side(side_xy)
-    return joint if joint is not None and _lid_rim(joint, lid, sigma, r_eps, ctx) else None
+    beside = side_xy if side_counts else None
+    return joint if joint is not None and _lid_rim(joint, lid, sigma, r_eps, ctx, beside=beside) else None
 
 
 def _bare_lid(points, z_lid, sigma, band):
