@@ -14,6 +14,7 @@ per-frame refit (example_pcl.local_fit) starts the refinement from the previous 
 instead (:func:`refine_lying_cylinder`) and judges it the same way (:func:`judge_lying`).
 """
 import dataclasses
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -96,16 +97,22 @@ def _distinct(members, score, count, max_overlap=0.5, scan=64):
     points within r_eps; score (H,): 0 never, nor one of fewer than 3 members), each sharing at most
     max_overlap of the smaller one's points with one taken before: the same can seen from several
     subsets counts once."""
-    size = members.sum(axis=1)
+    order = [int(h) for h in np.argsort(-score, kind="stable")[:scan]]
+    order = order[:next((i for i, h in enumerate(order) if score[h] <= 0), len(order))]
+    if not order:
+        return []
+    # Every pair's shared points at once (one product), then the greedy choice on them.
+    chosen = members[order].astype(float)
+    shared = chosen @ chosen.T
+    size = np.diagonal(shared)
     taken = []
-    for h in np.argsort(-score, kind="stable")[:scan]:
-        if score[h] <= 0 or len(taken) == count:
+    for i in range(len(order)):
+        if len(taken) == count:
             break
-        if size[h] < 3 or (taken and ((members[taken] & members[h]).sum(axis=1)
-                                      > max_overlap * np.minimum(size[taken], size[h])).any()):
+        if size[i] < 3 or any(shared[i, j] > max_overlap * min(size[j], size[i]) for j in taken):
             continue
-        taken.append(int(h))
-    return taken
+        taken.append(i)
+    return [order[i] for i in taken]
 
 
 def fit_lying_cylinders(points, r_eps, min_radius, max_radius, max_gap, directions=36, iterations=15,
@@ -364,19 +371,25 @@ def _without_flat_end(bands, residual, diagonal, run, r_eps, min_bands=2, min_co
     b, sq = bands[keep] - first, residual[keep] ** 2
     diagonal, outside = diagonal[keep], residual[keep] > off_distance * r_eps
     count = np.bincount(b, minlength=last - first + 1)
-    band_rms = np.sqrt(np.bincount(b, sq, minlength=len(count)) / np.maximum(count, 1))
+    band_sq = np.bincount(b, sq, minlength=len(count))
+    band_rms = np.sqrt(band_sq / np.maximum(count, 1))
+    per_band = np.stack([count, band_sq, np.bincount(b[diagonal], minlength=len(count)),
+                         np.bincount(b[diagonal & outside], minlength=len(count))])
+    # Sums over the bands below each split and from it on (points, squared residuals, diagonal points,
+    # those outside): each split is judged on them, not on the points again.
+    zero = np.zeros((4, 1))
+    below = np.hstack([zero, np.cumsum(per_band, axis=1)])
+    from_on = np.hstack([np.cumsum(per_band[:, ::-1], axis=1)[:, ::-1], zero])
     best, split = ratio, None
     for c in range(min_bands, len(count) - min_bands + 1):
-        for beyond, at_end in ((b >= c, True), (b < c, False)):
-            n_beyond = int(beyond.sum())
-            if n_beyond < min_count or len(b) - n_beyond < min_count:
+        for beyond, rest, at_end in ((from_on[:, c], below[:, c], True), (below[:, c], from_on[:, c], False)):
+            (n_beyond, sq_beyond, d_beyond, out_beyond), (n_rest, sq_rest, d_rest, out_rest) = beyond, rest
+            if n_beyond < min_count or n_rest < min_count:
                 continue
-            rms_beyond, rms_rest = np.sqrt(sq[beyond].mean()), np.sqrt(sq[~beyond].mean())
+            rms_beyond, rms_rest = math.sqrt(sq_beyond / n_beyond), math.sqrt(sq_rest / n_rest)
             if rms_beyond < floor * r_eps or rms_beyond <= best * rms_rest:
                 continue
-            d_beyond, d_rest = beyond & diagonal, ~beyond & diagonal
-            if (d_beyond.sum() < min_diagonal or (outside & d_beyond).sum() < off * d_beyond.sum()
-                    or (outside & d_rest).sum() > 0.5 * off * max(d_rest.sum(), 1)):
+            if d_beyond < min_diagonal or out_beyond < off * d_beyond or out_rest > 0.5 * off * max(d_rest, 1):
                 continue
             best, split = rms_beyond / max(rms_rest, 1e-9), (c, at_end, rms_rest)
     if split is None:
@@ -425,9 +438,10 @@ def _refine(q, z, theta, d, zc, r, r_eps, iterations, use, max_radius, max_gap, 
     when fewer than 4 points stay near it, the radius grows beyond 2 max_radius (m) or the axis
     leaves the height fit_lying_cylinder allows."""
     q, z = q[use], z[use]  # once, not in every iteration
+    qx, qy = q[:, 0], q[:, 1]
     for _ in range(iterations):
-        axial, lat = _on_axis(q, theta)
-        dl, dz = lat - d, z - zc
+        cos, sin = math.cos(theta), math.sin(theta)
+        axial, dl, dz = qx * cos + qy * sin, qy * cos - qx * sin - d, z - zc
         rho = np.hypot(dl, dz)
         residual = rho - r
         mine = _facing(dl, dz, theta, d, zc, sensor)
@@ -438,21 +452,26 @@ def _refine(q, z, theta, d, zc, r, r_eps, iterations, use, max_radius, max_gap, 
         near = np.flatnonzero((np.abs(residual) < cutoff) & mine)
         if len(near) < 4:
             return None
-        dl, dz, res, rho_n = dl[near], dz[near], residual[near], np.maximum(rho[near], 1e-9)
-        # d rho / d theta = (dl / rho) d lat / d theta, and d lat / d theta = -axial.
-        J = np.empty((len(near), 4))
-        J[:, 1], J[:, 2], J[:, 3] = -dl / rho_n, -dz / rho_n, -1.0
-        J[:, 0] = J[:, 1] * axial[near]
-        w = (1 - (res / cutoff) ** 2) ** 2
-        Jw = J.T * w
+        # The Jacobian's rows and the residual in one array: one product gives J^T W J and J^T W residual
+        # (the iteration's time is NumPy's per-call cost). d rho / d theta = (dl / rho) d lat / d theta,
+        # and d lat / d theta = -axial.
+        J = np.empty((5, len(near)))
+        inverse = -1.0 / np.maximum(rho[near], 1e-9)
+        np.multiply(dl[near], inverse, out=J[1])
+        np.multiply(dz[near], inverse, out=J[2])
+        J[3] = -1.0
+        np.multiply(J[1], axial[near], out=J[0])
+        J[4] = residual[near]
+        w = (1 - (J[4] / cutoff) ** 2) ** 2
+        normal = (J * w) @ J.T
         try:
-            step = np.linalg.solve(Jw @ J, -(Jw @ res))
+            step = np.linalg.solve(normal[:4, :4], -normal[:4, 4])
         except np.linalg.LinAlgError:
             return None
         theta, d, zc, r = theta + step[0], d + step[1], zc + step[2], r + step[3]
         if not 0 < r <= 2 * max_radius or abs(zc - r) > 0.25 * r + 2 * max_gap:
             return None
-        if np.abs(step[1:]).max() < 2e-5 and abs(step[0]) < 2e-4:
+        if max(abs(step[1]), abs(step[2]), abs(step[3])) < 2e-5 and abs(step[0]) < 2e-4:
             break
     dl, dz = _on_axis(q, theta)[1] - d, z - zc
     residual = np.hypot(dl, dz) - r
@@ -479,9 +498,9 @@ def _toward_sensor(theta, d, zc, sensor):
     the frame of the lateral coordinates, m; None: straight up)."""
     if sensor is None:
         return 0.0, 1.0
-    fl = -sensor[0] * np.sin(theta) + sensor[1] * np.cos(theta) - d
+    fl = -sensor[0] * math.sin(theta) + sensor[1] * math.cos(theta) - d
     fz = sensor[2] - zc
-    norm = max(np.hypot(fl, fz), 1e-9)
+    norm = max(math.hypot(fl, fz), 1e-9)
     return fl / norm, fz / norm
 
 
