@@ -97,8 +97,7 @@ def _distinct(members, score, count, max_overlap=0.5, scan=64):
     points within r_eps; score (H,): 0 never, nor one of fewer than 3 members), each sharing at most
     max_overlap of the smaller one's points with one taken before: the same can seen from several
     subsets counts once."""
-    order = [int(h) for h in np.argsort(-score, kind="stable")[:scan]]
-    order = order[:next((i for i, h in enumerate(order) if score[h] <= 0), len(order))]
+    order = [int(h) for h in np.argsort(-score, kind="stable")[:scan] if score[h] > 0]
     if not order:
         return []
     # Every pair's shared points at once (one product), then the greedy choice on them.
@@ -455,15 +454,15 @@ def _refine(q, z, theta, d, zc, r, r_eps, iterations, use, max_radius, max_gap, 
         # The Jacobian's rows and the residual in one array: one product gives J^T W J and J^T W residual
         # (the iteration's time is NumPy's per-call cost). d rho / d theta = (dl / rho) d lat / d theta,
         # and d lat / d theta = -axial.
-        J = np.empty((5, len(near)))
+        rows = np.empty((5, len(near)))
         inverse = -1.0 / np.maximum(rho[near], 1e-9)
-        np.multiply(dl[near], inverse, out=J[1])
-        np.multiply(dz[near], inverse, out=J[2])
-        J[3] = -1.0
-        np.multiply(J[1], axial[near], out=J[0])
-        J[4] = residual[near]
-        w = (1 - (J[4] / cutoff) ** 2) ** 2
-        normal = (J * w) @ J.T
+        np.multiply(dl[near], inverse, out=rows[1])
+        np.multiply(dz[near], inverse, out=rows[2])
+        rows[3] = -1.0
+        np.multiply(rows[1], axial[near], out=rows[0])
+        rows[4] = residual[near]
+        w = (1 - (rows[4] / cutoff) ** 2) ** 2
+        normal = (rows * w) @ rows.T
         try:
             step = np.linalg.solve(normal[:4, :4], -normal[:4, 4])
         except np.linalg.LinAlgError:
