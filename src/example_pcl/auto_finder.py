@@ -385,7 +385,8 @@ def _search_cylinders(pts, T, viewpoint, config):
     grid = g.subsample(pts, step)
     T_plane_from_sensor = transforms.invert(T)
     in_plane = _native.transform_cloud(grid, T_plane_from_sensor)
-    sensor_plane = transforms.apply(T_plane_from_sensor, g.as_vector3(viewpoint, "viewpoint"))
+    viewpoint = g.as_vector3(viewpoint, "viewpoint")
+    sensor_plane = transforms.apply(T_plane_from_sensor, viewpoint)
     t1 = time.perf_counter()
     # The grid has 1 / step^2 of the points: so has a cluster.
     grid_config = dataclasses.replace(config, min_cluster_points=max(int(config.min_cluster_points / step ** 2), 3))
@@ -394,7 +395,7 @@ def _search_cylinders(pts, T, viewpoint, config):
     t2 = time.perf_counter()
     points = [_native.extract(in_plane, idx).astype(float) for idx in clusters]
     found, rejections = can_search.search(points, standing, T, sensor_plane, config,
-                                          ray_angle=g.ray_angle(grid, g.as_vector3(viewpoint, "viewpoint")))
+                                          ray_angle=g.ray_angle(grid, viewpoint))
     cans = [dataclasses.replace(can, indices=_grid_indices(clusters[k][can.indices], in_plane.shape[:-1],
                                                             pts.shape[:-1], step)) for k, can in found]
     rejected = [RejectedCluster(centroid=transforms.apply(T, rj.centroid), n_points=rj.n_points, reason=rj.reason,

@@ -1245,10 +1245,8 @@ def _lid_rim(rim, lid, sigma, r_eps, ctx, beside=None):
     1.2 rad, 2.25 with the side)."""
     c, s = ctx.config, ctx.search
     cx, cy, r = rim.cx, rim.cy, rim.radius
-    if beside is not None:
-        rim_xy = rim.outline[np.abs(rim.residual) <= rim.r_eps]
-        if g.arc_coverage(np.vstack([rim_xy, np.asarray(beside)[:, :2]]), cx, cy) < c.min_arc:
-            return False
+    if beside is not None and rim.arc(beside) < c.min_arc:
+        return False
     return (c.min_radius <= r <= c.max_radius and rim.fits(sigma, s.lid_arc if beside is None else s.min_hidden_arc)
             and g.facet_ratio(rim.outline, cx, cy, rim.outline_radius) >= s.max_facet_ratio
             and _holds_lid(lid, cx, cy, r, r_eps)

@@ -690,9 +690,11 @@ class RimCircle:
         rim = residual[min(2, int(np.count_nonzero(residual < -self.r_eps))):]
         return float(np.sqrt(np.mean(rim ** 2))) if len(rim) else np.inf
 
-    def arc(self):
-        """The angle (rad) the outline points within r_eps of the circle span around it."""
-        return arc_coverage(self.outline[np.abs(self.residual) <= self.r_eps], self.cx, self.cy)
+    def arc(self, beside=None):
+        """The angle (rad) the outline points within r_eps of the circle span around it, together with
+        the points beside (float (M, 2+), m: a stripe of side under the lid) when given."""
+        rim = self.outline[np.abs(self.residual) <= self.r_eps]
+        return arc_coverage(rim if beside is None else np.vstack([rim, _xy(beside)]), self.cx, self.cy)
 
     def with_side(self, side_xy, from_both=False):
         """The circle refitted to the outline and to side points under the lid (float (M, 2+), m), by
