@@ -470,13 +470,15 @@ def verify(free, cx, cy, r, ctx, z0=None, again=True, rim=False):
     if n_side < c.min_fit_points:
         return None, f"{n_side} points on the circle (min {c.min_fit_points})", None
 
-    def claim(x0=None, y0=None, radius=None, z_from=None, hollow=False):
+    def claim(x0=None, y0=None, radius=None, z_from=None, hollow=False, lid=False):
         """The points of a round object that is no can: its disc over the run, from z_from (m) when
         its base is known (a cup on a can leaves the can's lid), so no other hypothesis is tried on it.
-        A hollow one (its inside or handle seen: a cup or mug for sure) keeps its space (_inside_cup)."""
+        A hollow one (its inside or handle seen: a cup or mug for sure) keeps its space (_inside_cup).
+        lid: up to its lid too (3 sigma above `top`): the run ends a band under a flat lid, whose points
+        would be left to the lying search (_claim_round)."""
         x0, y0, radius = (cx, cy, r) if x0 is None else (x0, y0, radius)
         taken = free.disc(x0, y0, radius + r_eps, z_lo - s.band_height if z_from is None else z_from,
-                          z_hi + s.band_height)
+                          max(z_hi + s.band_height, top + 3 * sigma) if lid else z_hi + s.band_height)
         if hollow and len(taken):
             ctx.cups_claimed.append((x0, y0, radius, float(free.z[taken].min()), float(free.z[taken].max())))
         return free.idx[taken]
@@ -688,10 +690,11 @@ def _claim_round(xy, cx, cy, r, claim, config):
     """claim(cx, cy, r) (the disc's points: verify's claim) when the side points xy (m, plane frame)
     are round about the circle (shape error within max_shape_error: a tin, a pot), else None. A
     circle of no can's radius through a box's corner, or through a box's face and a can beside it,
-    would take the can's points with its disc."""
+    would take the can's points with its disc. Its lid is taken too: a tin's lid left beside a lying
+    can pulled the lying search's circles off it (fresh seed 2003 of "cluttered table")."""
     if g.shape_error(xy, cx, cy, r, config.shape_bins) > config.max_shape_error:
         return None
-    return claim(cx, cy, r)
+    return claim(cx, cy, r, lid=True)
 
 
 def radius_taper(dist, z):
@@ -1103,10 +1106,13 @@ def search_cluster(points, ctx):
                 break
         if not progress:
             break
-    if len(cans) > len(lying_cans):
+    if len(cans) > len(lying_cans) or (rejections and not lying_cans):
         # Upright cans found: the lying cans are looked for again without them. A lying can beside one
         # may stand out only now, and one found before may have taken a neighbour's side at its end for
-        # its end's disc (too long).
+        # its end's disc (too long). So too when none was found and round objects that are no can were
+        # claimed (the rejections so far): beside a big one (a tin of r 99 mm) a lying can has too few of
+        # the lying search's subsampled points for its circles to outrank the tin's (fresh seed 2003 of
+        # "cluttered table").
         for can in lying_cans:
             free[can.indices] = True
         # Nor the points just around an upright can that its own points leave (its side's noise, the
