@@ -1109,10 +1109,10 @@ def search_cluster(points, ctx):
     if len(cans) > len(lying_cans) or (rejections and not lying_cans):
         # Upright cans found: the lying cans are looked for again without them. A lying can beside one
         # may stand out only now, and one found before may have taken a neighbour's side at its end for
-        # its end's disc (too long). So too when none was found and round objects that are no can were
-        # claimed (the rejections so far): beside a big one (a tin of r 99 mm) a lying can has too few of
-        # the lying search's subsampled points for its circles to outrank the tin's (fresh seed 2003 of
-        # "cluttered table").
+        # its end's disc (too long). So too when no lying can was found and the rounds claimed round
+        # objects that are no can (the rejections so far): beside a big one (a tin of r 99 mm) a lying can
+        # has too few of the lying search's subsampled points for its circles to outrank the tin's (fresh
+        # seed 2003 of "cluttered table").
         for can in lying_cans:
             free[can.indices] = True
         # Nor the points just around an upright can that its own points leave (its side's noise, the
