@@ -182,6 +182,18 @@ def test_cup_on_a_can_leaves_the_can_and_names_the_cup():
     assert any(r.reason.startswith("open top") for r in result.rejected), [r.reason for r in result.rejected]
 
 
+@pytest.mark.parametrize("tilt, distance", [(0.55, 0.74), (0.5, 0.9)])
+def test_a_cup_on_a_tall_can_seen_from_low_is_open(tilt, distance):
+    """Seen from low, a cup on a tall can shows only the top 2-3 cm of its far inner wall (2 r
+    tan(elevation) below its rim): counted against its near side over as many centimetres, not
+    open_window, the cup is open, not a can (fresh seed 2200 of "cup on can")."""
+    objects = [Obj("can", 0.0, 0.0, radius=0.033, height=0.147),
+               Obj("cup", 0.0, 0.0, 0.147, radius=0.041, height=0.0885, yaw=-2.4)]
+    _, result, to_table = search(objects, tilt=tilt, camera_distance=distance)
+    assert_cans_at(result, to_table, objects)
+    assert any(r.reason.startswith("open top") for r in result.rejected), [r.reason for r in result.rejected]
+
+
 @pytest.mark.parametrize("tilt", [0.7, 1.1])
 def test_a_can_under_a_wider_cup_ends_where_the_cup_begins(tilt):
     """The cup's overhang hides the top of the can's side (more, the steeper the sensor looks down):
