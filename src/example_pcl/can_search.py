@@ -470,15 +470,15 @@ def verify(free, cx, cy, r, ctx, z0=None, again=True, rim=False):
     if n_side < c.min_fit_points:
         return None, f"{n_side} points on the circle (min {c.min_fit_points})", None
 
-    def claim(x0=None, y0=None, radius=None, z_from=None, hollow=False, lid=False):
+    def claim(x0=None, y0=None, radius=None, z_from=None, hollow=False, with_lid=False):
         """The points of a round object that is no can: its disc over the run, from z_from (m) when
         its base is known (a cup on a can leaves the can's lid), so no other hypothesis is tried on it.
         A hollow one (its inside or handle seen: a cup or mug for sure) keeps its space (_inside_cup).
-        lid: up to its lid too (3 sigma above `top`): the run ends a band under a flat lid, whose points
+        with_lid: up to its lid too (3 sigma above `top`): the run ends a band under a flat lid, whose points
         would be left to the lying search (_claim_round)."""
         x0, y0, radius = (cx, cy, r) if x0 is None else (x0, y0, radius)
         taken = free.disc(x0, y0, radius + r_eps, z_lo - s.band_height if z_from is None else z_from,
-                          max(z_hi + s.band_height, top + 3 * sigma) if lid else z_hi + s.band_height)
+                          max(z_hi + s.band_height, top + 3 * sigma) if with_lid else z_hi + s.band_height)
         if hollow and len(taken):
             ctx.cups_claimed.append((x0, y0, radius, float(free.z[taken].min()), float(free.z[taken].max())))
         return free.idx[taken]
@@ -694,7 +694,7 @@ def _claim_round(xy, cx, cy, r, claim, config):
     can pulled the lying search's circles off it (fresh seed 2003 of "cluttered table")."""
     if g.shape_error(xy, cx, cy, r, config.shape_bins) > config.max_shape_error:
         return None
-    return claim(cx, cy, r, lid=True)
+    return claim(cx, cy, r, with_lid=True)
 
 
 def radius_taper(dist, z):
