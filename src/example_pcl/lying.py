@@ -260,8 +260,8 @@ def _from_origin(points, origin):
 def _on_axis(q, theta):
     """(axial, lateral) coordinates (m, each (N,)) of points q (float64 (N, 2), m) along and across the
     direction theta (rad)."""
-    c, s = np.cos(theta), np.sin(theta)
-    return q[:, 0] * c + q[:, 1] * s, -q[:, 0] * s + q[:, 1] * c
+    c, s = math.cos(theta), math.sin(theta)  # a scalar: math's, without NumPy's per-call cost
+    return q[:, 0] * c + q[:, 1] * s, q[:, 1] * c - q[:, 0] * s
 
 
 def _explained(q, z, fit, r_eps, sensor, band, fraction, min_points, max_gap, occluders=None, origin=(0.0, 0.0)):
@@ -437,10 +437,9 @@ def _refine(q, z, theta, d, zc, r, r_eps, iterations, use, max_radius, max_gap, 
     when fewer than 4 points stay near it, the radius grows beyond 2 max_radius (m) or the axis
     leaves the height fit_lying_cylinder allows."""
     q, z = q[use], z[use]  # once, not in every iteration
-    qx, qy = q[:, 0], q[:, 1]
     for _ in range(iterations):
-        cos, sin = math.cos(theta), math.sin(theta)
-        axial, dl, dz = qx * cos + qy * sin, qy * cos - qx * sin - d, z - zc
+        axial, lateral = _on_axis(q, theta)
+        dl, dz = lateral - d, z - zc
         rho = np.hypot(dl, dz)
         residual = rho - r
         mine = _facing(dl, dz, theta, d, zc, sensor)
