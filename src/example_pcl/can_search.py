@@ -108,7 +108,8 @@ class CylinderSearchConfig:
     errors of the change (depth noise sigma, so noise alone almost never does it).
     max_facet_ratio: a side seen over at least min_arc whose two halves both lie closer to a line
     than to the circle (rms, below this ratio: geometry.facet_ratio) is two flat faces, a box's
-    corner the circle touches, not a can.
+    corner the circle touches, not a can; a lying can's side whose whole arc does
+    (geometry.line_ratio) is one flat face.
     lid_arc (rad): a can seen by its lid alone (its side hidden behind an object in front) shows the
     lid's rim over at least this on the half away from the sensor (_lid_only); lid_levels: the
     heights tried for such a lid, fullest first (a box beside it may have more points at its top's

@@ -637,6 +637,26 @@ def shape_error(xy, cx, cy, radius, bins):
     return float(np.sqrt(means @ means / bins))
 
 
+def line_ratio(xy, cx, cy, radius):
+    """How much better the circle of `radius` about (cx, cy) (m) explains points (float (N, 2), m)
+    than their own best line (dimensionless): the rms distance to that line over the rms distance
+    to the circle. Above 1 when the circle's curvature shows through the noise; below 1 for one flat
+    face that a circle touches. NaN for fewer than 3 points."""
+    xy = np.asarray(xy, dtype=float)[:, :2]
+    if len(xy) < 3:
+        return float("nan")
+    circle = np.sqrt(np.mean((np.hypot(xy[:, 0] - cx, xy[:, 1] - cy) - radius) ** 2))
+    return float(_line_rms(xy) / circle) if circle > 0 else float("inf")
+
+
+def _line_rms(xy):
+    """The rms distance (m) of points (float (N, 2), m) to their best line: the square root of the
+    smaller eigenvalue of their 2 x 2 covariance."""
+    centred = xy - xy.mean(axis=0)
+    a, b, c = np.mean(centred[:, 0] ** 2), np.mean(centred[:, 0] * centred[:, 1]), np.mean(centred[:, 1] ** 2)
+    return np.sqrt(max(0.5 * (a + c) - np.hypot(0.5 * (a - c), b), 0.0))
+
+
 def facet_ratio(xy, cx, cy, radius):
     """How straight the two halves of an arc of points are (dimensionless): split at the middle of
     the arc they span around (cx, cy) (m), the larger over the halves of the rms distance to the
@@ -651,10 +671,7 @@ def facet_ratio(xy, cx, cy, radius):
     for half in (xy[order][along < 0.5 * span], xy[order][along >= 0.5 * span]):
         if len(half) < 3:
             return float("nan")
-        centred = half - half.mean(axis=0)
-        # The smaller eigenvalue of the 2 x 2 covariance: the mean squared distance to the best line.
-        a, b, c = np.mean(centred[:, 0] ** 2), np.mean(centred[:, 0] * centred[:, 1]), np.mean(centred[:, 1] ** 2)
-        line = np.sqrt(max(0.5 * (a + c) - np.hypot(0.5 * (a - c), b), 0.0))
+        line = _line_rms(half)
         circle = np.sqrt(np.mean((np.hypot(half[:, 0] - cx, half[:, 1] - cy) - radius) ** 2))
         ratio = max(ratio, line / circle if circle > 0 else np.inf)
     return float(ratio)

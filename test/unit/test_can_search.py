@@ -578,6 +578,31 @@ def test_the_rest_of_a_lying_cans_side_is_hidden_only_behind_something_nearer():
     assert hidden(fit, p[facing, 0], p[facing, 1], -0.07, 0.07, 0.005, sensor, np.empty((0, 3)))
 
 
+def test_a_flat_face_is_no_lying_can_where_a_short_arc_is():
+    """A lying cylinder (axis along x at 25 mm, r 32 mm) judged with the least arc of a hidden can
+    (min_occluded_arc) on the circle's 0.7 rad facing the sensor, or on a box's vertical face there
+    from 10 to 38 mm high that the circle crosses (1 mm inside it, as a fit puts it), both with the
+    noise of a Kinect at 0.7 m: the arc is a lying can, the face is not (the real learn21 with its
+    columns reversed: a box's front under an overhanging box, as round as its noise otherwise)."""
+    rng = np.random.default_rng(21)
+    config, search = af.AutoConfig(), cs.CylinderSearchConfig()
+    r, zc, sigma, n = 0.032, 0.025, 0.0007, 300
+    r_eps = max(config.r_eps, config.r_eps_sigmas * sigma)
+    fit = lying.LyingFit(direction=np.array([1.0, 0.0]), origin=np.zeros(2), offset=0.0, zc=zc, radius=r, rms=0.0,
+                         n_inliers=0)
+    sensor = np.array([0.04, -0.45, 0.6])  # in front (-y) and above
+    axial = rng.uniform(0.0, 0.08, n)
+    phi = np.pi + rng.uniform(-0.35, 0.35, n)
+    arc = np.c_[axial, r * np.cos(phi), zc + r * np.sin(phi)]
+    face = np.c_[axial, np.full(n, 0.001 - r), rng.uniform(0.010, 0.038, n)]
+    outcome = {}
+    for name, points in (("arc", arc), ("face", face)):
+        outcome[name] = lying.judge_lying(points + rng.normal(0.0, sigma, (n, 3)), fit, r_eps, sigma, config, search,
+                                          sensor, min_arc=search.min_occluded_arc)
+    assert outcome["arc"][0] is not None, outcome["arc"][1]
+    assert outcome["face"][0] is None and "closer to a line" in outcome["face"][1], outcome["face"][1]
+
+
 def test_the_run_along_a_lying_can_goes_on_where_its_side_is_hidden_behind_something_nearer():
     """A lying can (axis along x, r 30 mm, bands of 10 mm from x = -50 mm) whose three first bands
     show only the part of its near half above a wall 50 mm high in front of them: its run (bands 3-9)

@@ -756,6 +756,20 @@ def test_facet_ratio_tells_a_corner_from_an_arc():
     assert np.isnan(g.facet_ratio(arc[:4], 0.0, 0.0, r))
 
 
+def test_line_ratio_tells_one_face_from_a_short_arc():
+    """Noisy points over 0.7 rad of a circle of r 32 mm (2 mm of sagitta, 0.7 mm of noise): the
+    circle explains them better than a line (ratio above 1); a flat face 28 mm long that the circle
+    touches at its middle, as noisy: the line does (below 1); too few points: NaN."""
+    rng = np.random.default_rng(12)
+    r, noise = 0.032, 0.0007
+    angle = rng.uniform(-0.35, 0.35, 400)
+    arc = np.c_[r * np.cos(angle), r * np.sin(angle)] + rng.normal(0.0, noise, (400, 2))
+    assert g.line_ratio(arc, 0.0, 0.0, r) > 1.1
+    face = np.c_[np.full(400, r), rng.uniform(-0.014, 0.014, 400)] + rng.normal(0.0, noise, (400, 2))
+    assert g.line_ratio(face, 0.0, 0.0, r) < 0.9
+    assert np.isnan(g.line_ratio(arc[:2], 0.0, 0.0, r))
+
+
 def test_rim_circle_of_a_lid_seen_in_part():
     """A disc of points on a 5 mm grid (a lid sampled every 2nd pixel about 1.2 m away) whose near
     third is hidden: the rim's circle within 1 mm (centre) and 1.5 mm (radius, the half spacing
