@@ -346,8 +346,9 @@ class _Context:
     rng: np.random.Generator
     found: list  # the Cans found so far (supports for stacked cans)
     ray_angle: float = 0.0  # rad: between the rays of neighbouring grid pixels (0: not known)
-    # (cx, cy, r, z_lo, z_hi) (m, plane frame) of the hollow objects claimed (a cup, a mug)
-    cups_claimed: list = field(default_factory=list)
+    # (cx, cy, r, z_lo, z_hi, hollow) (m, plane frame) of the round objects claimed as no can (hollow:
+    # a cup, a mug)
+    claimed: list = field(default_factory=list)
 
 
 class _Free:
@@ -480,8 +481,8 @@ def verify(free, cx, cy, r, ctx, z0=None, again=True, rim=False):
         x0, y0, radius = (cx, cy, r) if x0 is None else (x0, y0, radius)
         taken = free.disc(x0, y0, radius + r_eps, z_lo - s.band_height if z_from is None else z_from,
                           max(z_hi + s.band_height, top + 3 * sigma) if with_lid else z_hi + s.band_height)
-        if hollow and len(taken):
-            ctx.cups_claimed.append((x0, y0, radius, float(free.z[taken].min()), float(free.z[taken].max())))
+        if len(taken):
+            ctx.claimed.append((x0, y0, radius, float(free.z[taken].min()), float(free.z[taken].max()), hollow))
         return free.idx[taken]
 
     if rim:
@@ -666,7 +667,9 @@ def _inside_cup(cx, cy, r, z_lo, z_hi, r_eps, ctx):
     held-out seed 808 of "mug and bowl"); else "". Not into the other round objects claimed: a
     circle of no can's radius through a can's front and a box (held-out seed 909 of "box hides
     base") is no object."""
-    for ox, oy, o_r, o_lo, o_hi in ctx.cups_claimed:
+    for ox, oy, o_r, o_lo, o_hi, hollow in ctx.claimed:
+        if not hollow:
+            continue
         depth = r + o_r - np.hypot(cx - ox, cy - oy)
         if depth > r_eps and min(z_hi, o_hi) - max(z_lo, o_lo) > 2 * ctx.search.band_height:
             return (f"reaches {1e3 * depth:.0f} mm into a cup or mug (r {1e3 * o_r:.0f} mm): two objects do not "
@@ -1210,6 +1213,8 @@ def _lid_at(free, band, level, sigma, r_eps, ctx):
     if rim is None or len(rim.outline) < c.shape_bins or not _lid_rim(rim, lid, sigma, r_eps, ctx):
         return None
     cx, cy, r, far = rim.cx, rim.cy, rim.radius, rim.outline
+    if _top_of_claimed(cx, cy, r, z_lid, r_eps, ctx):
+        return None
     dist = np.hypot(pts[:, 0] - cx, pts[:, 1] - cy)
     facing = _facing(pts[:, 0], pts[:, 1], cx, cy, r, ctx)
     side = (np.abs(dist - r) <= r_eps) & (z < z_lid - s.band_height) & facing
@@ -1264,6 +1269,15 @@ def _lid_rim(rim, lid, sigma, r_eps, ctx, beside=None):
             and _holds_lid(lid, cx, cy, r, r_eps)
             and not any(not other.lying and np.hypot(*(other.center_plane - (cx, cy))) < r + other.radius - r_eps
                         for other in ctx.found))
+
+
+def _top_of_claimed(cx, cy, r, z_lid, r_eps, ctx):
+    """Whether a lid (its rim's circle (cx, cy, r) at height z_lid, m) is the top of a round object
+    claimed before as no can: within its disc (and r_eps), less than min_can_height above what the
+    claim took, lower than a can standing on it would reach (the real learn37 at one grid offset
+    and seed: an upside-down bowl's foot over its tapered side)."""
+    return any(np.hypot(cx - ox, cy - oy) + r <= o_r + r_eps and z_lid - o_hi < ctx.config.min_can_height
+               for ox, oy, o_r, _, o_hi, _ in ctx.claimed)
 
 
 def _holds_lid(lid, cx, cy, r, r_eps):
