@@ -547,8 +547,9 @@ def lying_can(points, r_eps, sigma, config, search, sensor=None, occluders=None)
     r_eps: inlier distance (m); sigma: depth noise there (m); config: auto_finder.AutoConfig (radius
     range, inlier fraction, rms, shape error, arc, min_can_height as the least length); search:
     can_search.CylinderSearchConfig (lying_gap, lying_directions, fit_points, the bands along the
-    axis, max_taper, taper_sigmas); sensor: (x, y, z), plane frame (m), or None: only the points on
-    a cylinder's half facing it are its side (_facing); occluders (float (N, 3), plane frame, m, or
+    axis, max_taper, taper_sigmas, max_facet_ratio: a section no rounder than a line); sensor: (x,
+    y, z), plane frame (m), or None: only the points on a cylinder's half facing it are its side
+    (_facing); occluders (float (N, 3), plane frame, m, or
     None): every point standing on the table, what may hide part of its side (_rest_hidden). The
     distinct cylinders of fit_lying_cylinders are judged in turn on their extent; the first that
     passes is the can, else the first one's reason is why not."""
@@ -633,9 +634,9 @@ def judge_lying(points, fit, r_eps, sigma, config, search, sensor=None, occluder
     shape = g.shape_error(section, fit.offset, fit.zc, r, 2 * c.shape_bins)
     if shape > c.max_shape_error:
         return None, f"lying: shape error {1e3 * shape:.2f} mm > {1e3 * c.max_shape_error:.2f} mm (not round)"
-    # A box's face whose upper part something in front hides (the real learn21 seen mirrored: 38 mm
-    # of a box's front under an overhanging box, 0.71 rad of a circle of r 32 mm) is as near a
-    # circle's short arc as its noise: a can's side bends away from a line.
+    # A box's face whose upper part something in front hides (the real learn21 with its columns
+    # reversed: 38 mm of a box's front under an overhanging box, 0.71 rad of a circle of r 32 mm) is
+    # as near a circle's short arc as its noise: a can's side bends away from a line.
     straight = g.line_ratio(section, fit.offset, fit.zc, r)
     if straight < s.max_facet_ratio:
         return None, (f"lying: its side lies closer to a line than to the circle (rms ratio {straight:.2f} < "
