@@ -20,15 +20,12 @@ import numpy as np
 
 HERE = pathlib.Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
+from bench_cans import DOC, OBJECTS, OSD  # noqa: E402
 from common import machine_line, table, write_section  # noqa: E402
 
 from example_pcl import auto_finder as af  # noqa: E402
 from example_pcl import can_search as cs  # noqa: E402
 
-PROJECT = HERE.parent
-OSD = PROJECT / ".." / "shared" / "data" / "osd"
-OBJECTS = HERE / "osd_objects.json"
-DOC = PROJECT / "docs" / "can_search.md"
 # name: (the pixels' order, the sign of x, y, z)
 TURNS = {"": (np.s_[:, :], (1, 1, 1)), "mirrored, ": (np.s_[:, ::-1], (-1, 1, 1)),
          "upside down, ": (np.s_[::-1, ::-1], (-1, -1, 1)), "columns reversed, ": (np.s_[:, ::-1], (1, 1, 1))}
