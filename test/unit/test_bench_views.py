@@ -33,3 +33,21 @@ def test_wrong_names_the_cans_that_differ_from_the_labels():
     assert bench_views.wrong(SimpleNamespace(cans=[can([0, 1, 3]), can([3, 4], True)]), labels, objects) == ""
     assert bench_views.wrong(SimpleNamespace(cans=[can([0, 1]), can([5])]), labels, objects) == \
         "cans [2, 4] for [2]; lying cans none for [3]"
+
+
+def test_degraded_scenes_drop_pixels_or_move_them_along_their_rays():
+    """5 % or 20 % of the pixels dropped (NaN), the rest untouched; or every pixel moved along its ray
+    by noise of about the asked multiple of sigma (noise_coefficient x z^2)."""
+    xyz = np.zeros((200, 300, 3), np.float32)
+    xyz[..., 0], xyz[..., 2] = 0.1, 1.0
+    cloud = SimpleNamespace(xyz=xyz)
+    out = dict(bench_views.degraded(cloud, 1, 0.002))
+    assert list(out) == [f"{name}, draw 0" for name in bench_views.DEGRADED]
+    for name, fraction in (("5 % dropped", 0.05), ("20 % dropped", 0.2)):
+        lost = np.isnan(out[f"{name}, draw 0"][..., 2])
+        assert abs(lost.mean() - fraction) < 0.01
+        np.testing.assert_array_equal(out[f"{name}, draw 0"][~lost], xyz[~lost])
+    for name, sigmas in (("noise +0.5 sigma", 0.5), ("noise +1 sigma", 1.0)):
+        moved = out[f"{name}, draw 0"]
+        assert abs(np.std(moved[..., 2] - 1.0) - sigmas * 0.002) < 0.05 * sigmas * 0.002
+        np.testing.assert_allclose(moved[..., 0] / moved[..., 2], 0.1, rtol=1e-5)  # along the ray
