@@ -34,10 +34,15 @@ TURNS = {"": (np.s_[:, :], (1, 1, 1)), "mirrored, ": (np.s_[:, ::-1], (-1, 1, 1)
          "upside down, ": (np.s_[::-1, ::-1], (-1, -1, 1)), "columns reversed, ": (np.s_[:, ::-1], (1, 1, 1))}
 
 
+def object_labels(cloud):
+    """Each pixel's object (int (H, W)) from a labelled scene's labels (pcd.PointCloud): label // 10."""
+    return cloud.points["label"].astype(int) // 10
+
+
 def views(cloud, turns=tuple(TURNS)):
     """(name, xyz (H, W, 3) float32, object labels (H, W)) of the scene (a pcd.PointCloud with labels)
     in each of `turns` (TURNS' names) at each of the grid's four offsets."""
-    labels = cloud.points["label"].astype(int) // 10
+    labels = object_labels(cloud)
     for name in turns:
         order, sign = TURNS[name]
         xyz, lab = cloud.xyz[order] * np.array(sign, np.float32), labels[order]
@@ -103,7 +108,7 @@ def main(argv=None):
             config = af.AutoConfig(cylinders=cs.CylinderSearchConfig(seed=seed))
             for view, xyz, labels in views(cloud):
                 judge("views", f"{view} seed {seed}", af.find_cans(xyz, viewpoint=cloud.origin, config=config), labels)
-        labels = cloud.points["label"].astype(int) // 10
+        labels = object_labels(cloud)
         for what, xyz in degraded(cloud, args.draws, af.AutoConfig().noise_coefficient):
             judge("degraded", what, af.find_cans(xyz, viewpoint=cloud.origin), labels)
         for why, where in bad.items():

@@ -645,16 +645,12 @@ def line_ratio(xy, cx, cy, radius):
     xy = np.asarray(xy, dtype=float)[:, :2]
     if len(xy) < 3:
         return float("nan")
-    circle = np.sqrt(np.mean((np.hypot(xy[:, 0] - cx, xy[:, 1] - cy) - radius) ** 2))
-    return float(_line_rms(xy) / circle) if circle > 0 else float("inf")
-
-
-def _line_rms(xy):
-    """The rms distance (m) of points (float (N, 2), m) to their best line: the square root of the
-    smaller eigenvalue of their 2 x 2 covariance."""
     centred = xy - xy.mean(axis=0)
+    # The smaller eigenvalue of the 2 x 2 covariance: the mean squared distance to the best line.
     a, b, c = np.mean(centred[:, 0] ** 2), np.mean(centred[:, 0] * centred[:, 1]), np.mean(centred[:, 1] ** 2)
-    return np.sqrt(max(0.5 * (a + c) - np.hypot(0.5 * (a - c), b), 0.0))
+    line = np.sqrt(max(0.5 * (a + c) - np.hypot(0.5 * (a - c), b), 0.0))
+    circle = np.sqrt(np.mean((np.hypot(xy[:, 0] - cx, xy[:, 1] - cy) - radius) ** 2))
+    return float(line / circle) if circle > 0 else float("inf")
 
 
 def facet_ratio(xy, cx, cy, radius):
@@ -671,9 +667,7 @@ def facet_ratio(xy, cx, cy, radius):
     for half in (xy[order][along < 0.5 * span], xy[order][along >= 0.5 * span]):
         if len(half) < 3:
             return float("nan")
-        line = _line_rms(half)
-        circle = np.sqrt(np.mean((np.hypot(half[:, 0] - cx, half[:, 1] - cy) - radius) ** 2))
-        ratio = max(ratio, line / circle if circle > 0 else np.inf)
+        ratio = max(ratio, line_ratio(half, cx, cy, radius))
     return float(ratio)
 
 
