@@ -841,7 +841,8 @@ def test_real_scenes_give_the_same_cans_in_every_view(name):
     objects = json.loads(OBJECTS.read_text())["scenes"][name]
     for view, xyz, labels in views(cloud):
         result = af.find_cans(xyz, viewpoint=cloud.origin)
-        assert not wrong(result, labels, objects), (view, wrong(result, labels, objects), result.message)
+        why = wrong(result, labels, objects)
+        assert not why, (view, why, result.message)
 
 
 def test_batched_algebraic_circles_match_the_one_at_a_time_fit():
