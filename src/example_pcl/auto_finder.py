@@ -1,49 +1,11 @@
-"""Fully automatic can finding (issue 5): every upright cylinder standing on the support plane.
+"""The automatic search (mode 4, ``find_cans``): the table, then every can on it, with no selection.
 
-Pure functions on NumPy arrays; knows nothing of ROS. ``find_cans(xyz)`` takes an organized
-Kinect cloud (float32 (H, W, 3), metres, sensor optical frame, NaN holes) and, with no operator
-selection at all:
-
-1. **Table.** RANSAC (PCL's SACSegmentation, ``_native.segment_plane``) on the grid subsampled
-   every ``ransac_step`` pixels finds up to ``max_planes`` large planes, one after the other. The
-   support plane is the one with the most points *standing on it*: points of no plane lying
-   between ``min_height`` (plus 3.5 times the depth noise at their range) and ``max_height``
-   above it, on the sensor's side. A floor seen beyond the table has nothing within
-   ``max_height`` above it (the table top is higher), so it is not taken even when it is the
-   larger plane; a wall has only what is near it. When no plane holds ``min_support`` points,
-   the largest is the table (and nothing stands on it). With ``up`` given
-   (sensor frame), only planes whose normal is within ``max_tilt`` of it are searched. The plane
-   is then refined by least squares on the points within ``refine_band`` of it (every
-   ``refine_step``-th pixel) and a plane frame put on it (z up, toward the sensor).
-2. **Objects.** The whole cloud is moved into the plane frame; the points between ``min_height``
-   and ``max_height`` above the table are clustered by connected components on the organized grid
-   (``_native.organized_clusters``: neighbouring pixels join when within ``cluster_distance``),
-   or by PCL's Euclidean cluster extraction for an unorganized (N, 3) cloud.
-3. **Cylinders.** For each cluster: its height is its top (the 99th percentile of the points'
-   heights); its side points (from ``fit_bottom`` above the table to ``top_margin`` below the top,
-   both widened by 3 sigma of depth noise) seen from above are fitted with a circle, first
-   algebraically (Kasa), then by Gauss-Newton /
-   Levenberg-Marquardt on the radial error with the radius free (geometry.fit_cylinder).
-
-**Rejection criterion** (a cluster is a can only if all hold; the first failing one is reported):
-
-* it stands on the table: its lowest point is within ``min_height`` + ``max_base_gap`` of it;
-* it is at least ``min_can_height`` tall and has ``min_fit_points`` side points;
-* its side is no wider than a can of ``max_radius`` (plus r_eps on each side; checked first, so
-  large objects cost no fit);
-* radius within [``min_radius``, ``max_radius``];
-* the circle explains the side: at least ``min_inlier_fraction`` of the side points lie within
-  r_eps of it, where r_eps = max(``r_eps``, ``r_eps_sigmas`` x sigma) and sigma =
-  ``noise_coefficient`` x range^2 is the Kinect's depth noise at the cluster's range;
-* the residual is noise, not shape: the rms radial residual is at most
-  max(``max_rms``, ``max_rms_sigmas`` x sigma), *and* the shape error - the rms over
-  ``shape_bins`` consecutive arcs of the side of each arc's mean residual, where noise averages
-  out - is at most ``max_shape_error``. A box's flat faces bend away from any circle by
-  millimetres, systematically, which this catches at every range;
-* the side is seen around at least ``min_arc`` radians of the axis (a can's visible half is
-  about pi; a single flat face is much less).
-
-Everything is in metres and radians; "sensor frame" is the frame of the input cloud.
+Pure functions on NumPy arrays; knows nothing of ROS. ``find_cans(xyz)`` takes a Kinect cloud
+(float32 (H, W, 3) organized, or (N, 3); sensor frame, metres, NaN holes), finds the support plane
+(``find_support_plane``), clusters what stands on it, and searches the clusters for cans: upright,
+stacked, partly hidden or lying (``can_search``, the default) or, with ``search="clusters"``,
+asks each cluster to be one upright cylinder (the issue 5 finder, ``fit_upright_cylinder``). The
+steps and the criterion: docs/can_search.md ("The table and the clusters").
 """
 import argparse
 import dataclasses
@@ -95,7 +57,7 @@ class AutoConfig:
     Khoshelham & Elberink 2012), which widens fit_bottom and top_margin by 3 sigma; r_eps,
     r_eps_sigmas: a side point is an inlier within max(r_eps, r_eps_sigmas * sigma) of the circle.
 
-    Criterion (see the module docstring): max_base_gap, min_can_height, min_fit_points,
+    Criterion: docs/can_search.md ("The table and the clusters"): max_base_gap, min_can_height, min_fit_points,
     min_radius, max_radius, min_inlier_fraction, max_rms, max_rms_sigmas, shape_bins,
     max_shape_error, min_arc.
 
@@ -228,7 +190,7 @@ def _finite_rows(points):
 
 
 def find_support_plane(xyz, viewpoint=(0.0, 0.0, 0.0), config=AutoConfig()):
-    """The plane the objects stand on (step 1 of the module docstring).
+    """The plane the objects stand on (docs/can_search.md, "The table and the clusters").
 
     xyz: float32 (H, W, 3) or (N, 3), sensor frame (m), NaN allowed; viewpoint: the sensor
     (sensor frame, m); normals are turned toward it. Returns (Plane, T_sensor_from_plane,
@@ -298,7 +260,8 @@ shape_error = g.shape_error
 
 
 def fit_upright_cylinder(points_plane, sensor_plane, config=AutoConfig()):
-    """One cluster's upright cylinder (step 3 of the module docstring), in the plane frame.
+    """One cluster's upright cylinder, in the plane frame: the issue 5 finder (docs/can_search.md, "The
+    table and the clusters").
 
     points_plane: float (N, 3) cluster points in the plane frame (m, z up from the table);
     sensor_plane: the sensor's position in the plane frame (m), for the noise level.
@@ -406,11 +369,11 @@ def _search_cylinders(pts, T, viewpoint, config):
 
 
 def find_cans(xyz, viewpoint=(0.0, 0.0, 0.0), config=AutoConfig()):
-    """Every upright can standing on the support plane of a cloud, with no selection: an AutoResult.
+    """Every can on the support plane of a cloud (upright, stacked or lying), with no selection: an AutoResult.
 
     xyz: float32 (H, W, 3) organized (fast path) or (N, 3) cloud, sensor frame (m), NaN holes;
-    viewpoint: the sensor's position in that frame (m). See the module docstring for the steps
-    and the rejection criterion. An empty result (no can) is not an error; a cloud without a
+    viewpoint: the sensor's position in that frame (m). The steps and the rejection criterion:
+    docs/can_search.md. An empty result (no can) is not an error; a cloud without a
     usable plane raises PerceptionError.
     """
     config.validate()
@@ -455,7 +418,7 @@ def _parser():
     d = AutoConfig()
     p = argparse.ArgumentParser(
         prog="find_cans",
-        description="Find every upright can standing on the table (or on an object on it) in a PCD scene "
+        description="Find every can on the table (upright, on an object on it, or lying) in a PCD scene "
                     "(no selection) and print them as JSON (sensor frame, metres), each with its fit rms, "
                     "visible arc, points, support and whether its base was seen. Exits 0 also when there is none.")
     p.add_argument("scene", metavar="SCENE.pcd", help="an organized (or unorganized) x y z PCD file")
