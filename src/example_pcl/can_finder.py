@@ -12,7 +12,7 @@ The operator's flow, which :class:`CanFinder` enforces with explicit preconditio
    convergence.
 
 Mode 4, FIND_CAN_AUTO, needs no selection: example_pcl.auto_finder finds the table and every
-upright cylinder on it, radius unknown; the best can becomes the current estimate, so modes 0-3
+can on it (upright or lying), radius unknown; the best can becomes the current estimate, so modes 0-3
 and mode 4 share their outputs.
 
 Everything is in the sensor frame (the cloud's frame, metres) unless named "plane frame" (z along
@@ -240,7 +240,7 @@ class CanFinder:
         }[mode]()
 
     def find_cans_auto(self, up=None):
-        """Mode 4: every upright can on the table, no selection (example_pcl.auto_finder.find_cans).
+        """Mode 4: every can on the table (upright or lying), no selection (example_pcl.auto_finder.find_cans).
 
         up: the table's up direction (sensor frame), replacing config.auto.up when given; only
         planes within config.auto.max_tilt of it are taken for the table. The table becomes the
