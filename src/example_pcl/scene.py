@@ -424,14 +424,19 @@ def _parser():
     d = SceneSpec()
     p = argparse.ArgumentParser(
         prog="make_scene",
-        description="Write a simulated Kinect scene (a table with soda cans) as OUT.pcd, "
-                    "with its ground truth (camera frame) as OUT.json beside it.")
+        description="Write a simulated Kinect scene (a table with soda cans, or one of the cases of "
+                    "--case) as OUT.pcd, with its ground truth (camera frame) as OUT.json beside it.")
     p.add_argument("out", metavar="OUT.pcd", help="the PCD file to write")
-    p.add_argument("--distance", type=float, default=d.camera_distance,
-                   help="camera to the first can's base along the view, m (default %(default)s)")
-    p.add_argument("--tilt", type=float, default=d.tilt,
-                   help="camera pitch down from horizontal, rad (default %(default)s)")
-    p.add_argument("--yaw", type=float, default=d.yaw, help="view heading about the table normal, rad")
+    p.add_argument("--case", choices=scene_objects.CASES, metavar="CASE",
+                   help="one of the issue 13 cases, its objects and camera drawn from --seed: "
+                        + ", ".join(f"'{c}'" for c in scene_objects.CASES) + " (not with --can or --box)")
+    p.add_argument("--distance", type=float,
+                   help=f"camera to the first can's base along the view, m (default {d.camera_distance}; "
+                        "with --case, the case's)")
+    p.add_argument("--tilt", type=float,
+                   help=f"camera pitch down from horizontal, rad (default {d.tilt}; with --case, the case's)")
+    p.add_argument("--yaw", type=float, help=f"view heading about the table normal, rad (default {d.yaw}; "
+                                             "with --case, the case's)")
     p.add_argument("--can", type=float, nargs=4, action="append", metavar=("X", "Y", "R", "H"),
                    help="a can: base centre x, y in the table frame, radius, height, m; repeat for "
                         "more cans (default: one soda can, 0 0 0.033 0.122)")
@@ -441,7 +446,8 @@ def _parser():
     p.add_argument("--quantize", action="store_true", help="quantise depth as the Kinect's disparity")
     p.add_argument("--dropout", type=float, default=d.dropout,
                    help="fraction of pixels with no return at random (default %(default)s)")
-    p.add_argument("--seed", type=int, default=d.seed, help="random seed (default %(default)s)")
+    p.add_argument("--seed", type=int, default=d.seed,
+                   help="random seed of the noise and dropout (and of --case's objects) (default %(default)s)")
     p.add_argument("--format", choices=("ascii", "binary", "binary_compressed"), default="binary_compressed",
                    help="PCD data format (default %(default)s)")
     return p
@@ -454,10 +460,16 @@ def main(argv=None):
     out = pathlib.Path(args.out)
     if out.suffix != ".pcd":
         parser.error(f"OUT must end in .pcd, got {out}")
-    spec = SceneSpec(camera_distance=args.distance, tilt=args.tilt, yaw=args.yaw,
-                     cans=[tuple(c) for c in args.can] if args.can else SceneSpec().cans,
-                     boxes=[tuple(b) for b in args.box or []], noise=args.noise,
-                     quantize=args.quantize, dropout=args.dropout, seed=args.seed)
+    if args.case is not None:
+        if args.can or args.box:
+            parser.error("--case draws its own objects: give no --can or --box with it")
+        spec = scene_objects.case_spec(args.case, args.seed)
+    else:
+        spec = SceneSpec(cans=[tuple(c) for c in args.can] if args.can else SceneSpec().cans,
+                         boxes=[tuple(b) for b in args.box or []], seed=args.seed)
+    camera = {name: value for name, value in (("camera_distance", args.distance), ("tilt", args.tilt),
+                                              ("yaw", args.yaw)) if value is not None}
+    spec = dataclasses.replace(spec, **camera, noise=args.noise, quantize=args.quantize, dropout=args.dropout)
     try:
         scene = generate_scene(spec)
     except PerceptionError as e:
@@ -476,8 +488,9 @@ def main(argv=None):
         print(f"make_scene: cannot write {out} / {json_path}: {e}", file=sys.stderr)
         return 1
     valid = int(np.isfinite(scene.xyz[..., 2]).sum())
-    print(f"wrote {out} ({valid} of {WIDTH * HEIGHT} points with depth, {len(spec.cans)} can(s), "
-          f"{len(spec.boxes)} box(es)) and {json_path}")
+    what = (f"'{args.case}' seed {args.seed}: " + ", ".join(o["kind"] for o in scene.truth["objects"])
+            if args.case is not None else f"{len(spec.cans)} can(s), {len(spec.boxes)} box(es)")
+    print(f"wrote {out} ({valid} of {WIDTH * HEIGHT} points with depth, {what}) and {json_path}")
     return 0
 
 

@@ -1,4 +1,5 @@
 """Unit tests of example_pcl.scene, the simulated Kinect (pure NumPy, no ROS, no extension)."""
+import dataclasses
 import json
 import os
 import pathlib
@@ -336,10 +337,30 @@ def test_cli_defaults_give_default_scene(tmp_path, fake_pcd):
     assert_array_equal(fake_pcd[0]["xyz"], sc.generate_scene(sc.SceneSpec()).xyz)
 
 
+def test_cli_case_writes_that_case(tmp_path, fake_pcd, capsys):
+    """make_scene --case NAME --seed N writes scene_objects.case_spec(NAME, N), the scene the benchmark
+    scores, with its objects' truth; --distance moves its camera."""
+    from example_pcl import scene_objects
+
+    out = tmp_path / "lying.pcd"
+    assert sc.main([str(out), "--case", "lying can touching box", "--seed", "5"]) == 0
+    expected = sc.generate_scene(scene_objects.case_spec("lying can touching box", 5))
+    assert_array_equal(fake_pcd[0]["xyz"], expected.xyz)
+    truth = json.loads((tmp_path / "lying.json").read_text())
+    assert truth == expected.truth
+    assert [(o["kind"], o["lying"]) for o in truth["objects"]] == [("lying_can", True), ("box", False)]
+    assert "'lying can touching box' seed 5: lying_can, box" in capsys.readouterr().out
+
+    assert sc.main([str(out), "--case", "cup on can", "--seed", "2", "--distance", "1.1", "--no-noise"]) == 0
+    spec = dataclasses.replace(scene_objects.case_spec("cup on can", 2), camera_distance=1.1, noise=False)
+    assert_array_equal(fake_pcd[1]["xyz"], sc.generate_scene(spec).xyz)
+
+
 @pytest.mark.parametrize("argv", [["out.txt"], ["out.pcd", "--can", "0.7", "0", "0.03", "0.1"],
-                                  ["out.pcd", "--format", "xml"]])
+                                  ["out.pcd", "--format", "xml"], ["out.pcd", "--case", "a can"],
+                                  ["out.pcd", "--case", "can on can", "--box", "0", "0", "0.1", "0.1", "0.1"]])
 def test_cli_rejects_bad_arguments(tmp_path, fake_pcd, argv, capsys):
-    """make_scene exits with status 2 and a message for a bad file name, scene or format."""
+    """make_scene exits with status 2 and a message for a bad file name, scene, format or case."""
     with pytest.raises(SystemExit) as e:
         sc.main([str(tmp_path / argv[0])] + argv[1:])
     assert e.value.code == 2
