@@ -28,6 +28,7 @@ def main():
     run("bench_auto.py")  # writes its own section of docs/benchmarks.md (auto)
     run("bench_cans.py")  # writes its figures into docs/can_search.md
     run("bench_views.py")  # writes its figures into docs/can_search.md
+    run("bench_range.py")  # writes its figures into docs/can_search.md
     run("bench_tracking.py")
     run("bench_tracker_stream.py")  # writes its figures into docs/can_tracker.md
 
