@@ -937,9 +937,9 @@ def _open_top(points, cx, cy, r, r_eps, base, top, ctx):
 
 def _handle(points, cx, cy, dist, r, r_eps, base, top, ctx):
     """Why it has a handle (a mug), or "": points just outside the circle within its height, some
-    more than open_depth below the top, on an arc narrower than max_handle_arc, none of them
-    reaching down to the support or above the top (a box or can touching it stands on the table or
-    is taller)."""
+    more than open_depth below the top, spanning 2 r_eps of height or more, on an arc narrower than
+    max_handle_arc, none of them reaching down to the support or above the top (a box or can
+    touching it stands on the table or is taller)."""
     s = ctx.search
     # Whether it reaches further is judged on every point standing on the table around it too, not
     # only the cluster's free ones: a cup touching the can, rejected before it, took its points with
@@ -954,6 +954,11 @@ def _handle(points, cx, cy, dist, r, r_eps, base, top, ctx):
     # A handle reaches further down than a lid's lip or a rim wider than the side (learn43's coffee
     # canister: its lid's lip 10-14 mm out, 8-14 mm below the top, was a "handle" at one grid offset).
     if mid.sum() < s.min_handle_points or np.count_nonzero(mid & (z < top - s.open_depth)) < s.min_handle_points:
+        return ""
+    # A handle is a loop up the side: seen from where its inside would be hidden, its points span its
+    # height. Points at one height (within 2 r_eps) are a face: the top of a box or prism touching the
+    # can, the rest of it hidden (fresh held-out "cluttered table" 3009: a prism's top, 12 points).
+    if np.ptp(z[mid]) < 2 * r_eps:
         return ""
     angle = np.arctan2(around[:, 1] - cy, around[:, 0] - cx)
     order, arc = g.angular_order(angle[mid])

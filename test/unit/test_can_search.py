@@ -273,6 +273,21 @@ def test_a_lid_lip_is_no_handle_but_the_same_bump_lower_is(below_top, handle):
     assert bool(why) == handle, why
 
 
+@pytest.mark.parametrize("heights, handle", [((0.094, 0.0965), False), ((0.07, 0.08, 0.09, 0.1), True)])
+def test_points_at_one_height_beside_a_can_are_no_handle(heights, handle):
+    """Points 16-20 mm outside a can's circle over 0.4 rad, 5 cm below its top: the top of a prism
+    touching it, the rest hidden, when all lie within 2 r_eps of one height (fresh held-out "cluttered
+    table" 3009: 12 points within 2.4 mm); a handle when they span its height."""
+    r, top, r_eps = 0.036, 0.147, 0.0068
+    side = side_points(r, top, np.linspace(-1.4, 1.4, 60))
+    bump = np.concatenate([side_points(r, top, np.linspace(0.2, 0.6, 4), dr=dr, z=heights) for dr in (0.016, 0.02)])
+    points = np.concatenate([side, bump])
+    ctx = type("Ctx", (), {"search": cs.CylinderSearchConfig(), "standing": points,
+                           "sensor": np.array([1.0, 0.0, 0.8])})()
+    why = cs._handle(points, 0.0, 0.0, np.hypot(points[:, 0], points[:, 1]), r, r_eps, 0.0, top, ctx)
+    assert bool(why) == handle, why
+
+
 @pytest.mark.parametrize("seed", [402, 414, 416, 413, 417])
 def test_a_narrow_box_is_no_can(seed):
     """"boxes and prisms", development seeds where a 4 x 4 cm box passed every other rule: a circle
