@@ -53,6 +53,7 @@ def tally_at(distance, seeds, cases=so.CASES):
 
 
 def row(distance, total, wrong):
+    """The table's row for one camera distance (m): its tally and the scenes not right (tally_at)."""
     error = f"{1e3 * np.median(total.errors):.2f}" if total.errors else "-"
     where = ", ".join(f"{case} {seed}" for case, seed in wrong[:4]) + (f" and {len(wrong) - 4} more"
                                                                         if len(wrong) > 4 else "")

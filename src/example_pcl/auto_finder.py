@@ -57,8 +57,8 @@ class AutoConfig:
     Khoshelham & Elberink 2012), which widens fit_bottom and top_margin by 3 sigma; r_eps,
     r_eps_sigmas: a side point is an inlier within max(r_eps, r_eps_sigmas * sigma) of the circle.
 
-    Criterion: docs/can_search.md ("The table and the clusters"): max_base_gap, min_can_height, min_fit_points,
-    min_radius, max_radius, min_inlier_fraction, max_rms, max_rms_sigmas, shape_bins,
+    Criterion (docs/can_search.md, "The table and the clusters"): max_base_gap, min_can_height,
+    min_fit_points, min_radius, max_radius, min_inlier_fraction, max_rms, max_rms_sigmas, shape_bins,
     max_shape_error, min_arc.
 
     search: "cylinders" (default; can_search: cans inside clusters, stacked, partly hidden, lying,
