@@ -162,10 +162,11 @@ class AutoResult:
 
     @property
     def message(self):
-        """One line for a log: how many cans, or why none."""
+        """One line for a log: how many cans (how many of them lying), or why none."""
         if self.cans:
             radii = ", ".join(f"{1e3 * c.radius:.1f}" for c in self.cans)
-            return f"found {len(self.cans)} can(s), radii {radii} mm"
+            lying = sum(1 for c in self.cans if c.lying)
+            return f"found {len(self.cans)} can(s){f', {lying} lying' if lying else ''}, radii {radii} mm"
         if self.rejected:
             return f"no can found: {len(self.rejected)} object(s) on the support plane, none a can"
         return "no can found: nothing stands on the support plane"

@@ -223,6 +223,15 @@ def test_real_kinect_frame_has_no_can():
     assert result.message.startswith("no can found")
 
 
+def test_message_counts_the_lying_cans():
+    """A lying can touching an upright one (development seed 3): "found 2 can(s), 1 lying, radii ..."."""
+    from example_pcl import scene_objects
+
+    result = af.find_cans(sc.generate_scene(scene_objects.case_spec("lying can touching can", 3)).xyz)
+    assert sorted(c.lying for c in result.cans) == [False, True]
+    assert result.message.startswith("found 2 can(s), 1 lying, radii "), result.message
+
+
 @pytest.mark.parametrize("xyz", [np.full((48, 64, 3), np.nan, np.float32), np.zeros((0, 3), np.float32)],
                          ids=["all NaN", "empty"])
 def test_no_points_is_a_clear_error(xyz):
