@@ -55,9 +55,16 @@ class Tally:
     def __init__(self):
         self.found = self.missed = self.false = self.lying = self.lying_total = 0
         self.hidden_found = self.hidden_total = 0  # cans (upright or lying) less than MIN_IN_VIEW in view
-        self.errors, self.times, self.support_ok, self.base_ok = [], [], [], []
+        self.errors, self.times = [], []  # centre errors (m); real frames' search times (s)
         self.top_errors = []  # generated upright cans found: |found top - true top| (m)
         self.lying_errors, self.lying_angles = [], []
+
+    def add(self, other):
+        """Adds another Tally's counts and errors to this one (a total over cases)."""
+        for a in ("found", "missed", "false", "lying", "lying_total", "hidden_found", "hidden_total"):
+            setattr(self, a, getattr(self, a) + getattr(other, a))
+        for a in ("errors", "times", "top_errors", "lying_errors", "lying_angles"):
+            getattr(self, a).extend(getattr(other, a))
 
     def row(self, name, finder, timed):
         err = f"{1e3 * statistics.median(self.errors):.2f}" if self.errors else "-"
@@ -247,12 +254,7 @@ def main(argv=None):
         total = Tally()
         for (case, f), t in tallies.items():
             if f == finder and not case.startswith("real"):
-                for a in ("found", "missed", "false", "lying", "lying_total", "hidden_found", "hidden_total"):
-                    setattr(total, a, getattr(total, a) + getattr(t, a))
-                total.errors += t.errors
-                total.top_errors += t.top_errors
-                total.lying_errors += t.lying_errors
-                total.lying_angles += t.lying_angles
+                total.add(t)
         tallies[("generated: all", finder)] = total
     rows = [t.row(case, finder, case.startswith("real")) for (case, finder), t in sorted(
         tallies.items(), key=lambda kv: (kv[0][0].startswith("real"), kv[0][0].endswith("all"), kv[0][0], kv[0][1]))]

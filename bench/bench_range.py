@@ -44,9 +44,7 @@ def tally_at(distance, seeds, cases=so.CASES):
             to_plane, cans, lying = bench_cans.generated_truth(spec, scene)
             tally = bench_cans.Tally()
             bench_cans.score(tally, af.find_cans(scene.xyz).cans, cans, lying, to_plane, 0.015)
-            for a in ("found", "missed", "false", "lying", "lying_total"):
-                setattr(total, a, getattr(total, a) + getattr(tally, a))
-            total.errors += tally.errors
+            total.add(tally)
             if tally.missed or tally.false or tally.lying < tally.lying_total:
                 wrong.append((case, seed))
     return total, wrong

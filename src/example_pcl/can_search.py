@@ -52,7 +52,7 @@ it is no lying can either).
 import dataclasses
 from dataclasses import dataclass, field
 from functools import partial
-from typing import Optional
+from typing import NamedTuple, Optional
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -334,6 +334,18 @@ def best_circles(xy, cx, cy, r, eps, count, sensor=None, max_overlap=0.5, z=None
 # --- one cluster ----------------------------------------------------------------------------------
 
 
+class _Claim(NamedTuple):
+    """A round object claimed as no can (plane frame, m): its circle, the heights of the points it
+    took, and whether it is hollow (a cup, a mug: its inside or handle seen)."""
+
+    cx: float
+    cy: float
+    r: float
+    z_lo: float
+    z_hi: float
+    hollow: bool
+
+
 @dataclass
 class _Context:
     """What every verification in a search shares."""
@@ -346,9 +358,7 @@ class _Context:
     rng: np.random.Generator
     found: list  # the Cans found so far (supports for stacked cans)
     ray_angle: float = 0.0  # rad: between the rays of neighbouring grid pixels (0: not known)
-    # (cx, cy, r, z_lo, z_hi, hollow) (m, plane frame) of the round objects claimed as no can (hollow:
-    # a cup, a mug)
-    claimed: list = field(default_factory=list)
+    claimed: list = field(default_factory=list)  # _Claim: the round objects claimed as no can
 
 
 class _Free:
@@ -482,7 +492,7 @@ def verify(free, cx, cy, r, ctx, z0=None, again=True, rim=False):
         taken = free.disc(x0, y0, radius + r_eps, z_lo - s.band_height if z_from is None else z_from,
                           max(z_hi + s.band_height, top + 3 * sigma) if with_lid else z_hi + s.band_height)
         if len(taken):
-            ctx.claimed.append((x0, y0, radius, float(free.z[taken].min()), float(free.z[taken].max()), hollow))
+            ctx.claimed.append(_Claim(x0, y0, radius, float(free.z[taken].min()), float(free.z[taken].max()), hollow))
         return free.idx[taken]
 
     if rim:
@@ -667,12 +677,10 @@ def _inside_cup(cx, cy, r, z_lo, z_hi, r_eps, ctx):
     held-out seed 808 of "mug and bowl"); else "". Not into the other round objects claimed: a
     circle of no can's radius through a can's front and a box (held-out seed 909 of "box hides
     base") is no object."""
-    for ox, oy, o_r, o_lo, o_hi, hollow in ctx.claimed:
-        if not hollow:
-            continue
-        depth = r + o_r - np.hypot(cx - ox, cy - oy)
-        if depth > r_eps and min(z_hi, o_hi) - max(z_lo, o_lo) > 2 * ctx.search.band_height:
-            return (f"reaches {1e3 * depth:.0f} mm into a cup or mug (r {1e3 * o_r:.0f} mm): two objects do not "
+    for cup in (claim for claim in ctx.claimed if claim.hollow):
+        depth = r + cup.r - np.hypot(cx - cup.cx, cy - cup.cy)
+        if depth > r_eps and min(z_hi, cup.z_hi) - max(z_lo, cup.z_lo) > 2 * ctx.search.band_height:
+            return (f"reaches {1e3 * depth:.0f} mm into a cup or mug (r {1e3 * cup.r:.0f} mm): two objects do not "
                     "share space (its handle)")
     return ""
 
@@ -1281,8 +1289,8 @@ def _top_of_claimed(cx, cy, r, z_lid, r_eps, ctx):
     claimed before as no can: within its disc (and r_eps), less than min_can_height above what the
     claim took, lower than a can standing on it would reach (the real learn37 at one grid offset
     and seed: an upside-down bowl's foot over its tapered side)."""
-    return any(np.hypot(cx - ox, cy - oy) + r <= o_r + r_eps and z_lid - o_hi < ctx.config.min_can_height
-               for ox, oy, o_r, _, o_hi, _ in ctx.claimed)
+    return any(np.hypot(cx - o.cx, cy - o.cy) + r <= o.r + r_eps and z_lid - o.z_hi < ctx.config.min_can_height
+               for o in ctx.claimed)
 
 
 def _holds_lid(lid, cx, cy, r, r_eps):

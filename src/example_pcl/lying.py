@@ -549,8 +549,8 @@ def lying_can(points, r_eps, sigma, config, search, sensor=None, occluders=None)
     can_search.CylinderSearchConfig (lying_gap, lying_directions, fit_points, the bands along the
     axis, max_taper, taper_sigmas, max_facet_ratio: a section no rounder than a line); sensor: (x,
     y, z), plane frame (m), or None: only the points on a cylinder's half facing it are its side
-    (_facing); occluders (float (N, 3), plane frame, m, or
-    None): every point standing on the table, what may hide part of its side (_rest_hidden). The
+    (_facing); occluders (float (N, 3), plane frame, m, or None): every point standing on the
+    table, what may hide part of its side (_rest_hidden). The
     distinct cylinders of fit_lying_cylinders are judged in turn on their extent; the first that
     passes is the can, else the first one's reason is why not."""
     c, s = config, search

@@ -257,6 +257,14 @@ def side_points(r, top, angles, dr=0.0, z=None, n=40):
     return np.column_stack([(r + dr) * np.cos(a.ravel()), (r + dr) * np.sin(a.ravel()), zz.ravel()])
 
 
+def handle_of(points, r, top, r_eps):
+    """_handle's answer for a can of radius r about the origin, base on the table, top at `top` (m),
+    seen from along +x, 0.8 m up, nothing else standing on the table."""
+    ctx = type("Ctx", (), {"search": cs.CylinderSearchConfig(), "standing": points,
+                           "sensor": np.array([1.0, 0.0, 0.8])})()
+    return cs._handle(points, 0.0, 0.0, np.hypot(points[:, 0], points[:, 1]), r, r_eps, 0.0, top, ctx)
+
+
 @pytest.mark.parametrize("below_top, handle", [((0.008, 0.014), False), ((0.03, 0.06), True)])
 def test_a_lid_lip_is_no_handle_but_the_same_bump_lower_is(below_top, handle):
     """Points 12-14 mm outside a can's circle over a narrow arc: a lid's lip when they lie within
@@ -265,11 +273,7 @@ def test_a_lid_lip_is_no_handle_but_the_same_bump_lower_is(below_top, handle):
     side = side_points(r, top, np.linspace(-1.4, 1.4, 60))
     bump = np.concatenate([side_points(r, top, np.linspace(0.2, 0.4, 6), dr=dr, z=np.linspace(top - below_top[1], top - below_top[0], 4))
                            for dr in (0.0125, 0.0135)])
-    points = np.concatenate([side, bump])
-    # Seen from along +x, 0.8 m up; nothing else stands on the table.
-    ctx = type("Ctx", (), {"search": cs.CylinderSearchConfig(), "standing": points,
-                           "sensor": np.array([1.0, 0.0, 0.8])})()
-    why = cs._handle(points, 0.0, 0.0, np.hypot(points[:, 0], points[:, 1]), r, r_eps, 0.0, top, ctx)
+    why = handle_of(np.concatenate([side, bump]), r, top, r_eps)
     assert bool(why) == handle, why
 
 
@@ -281,10 +285,7 @@ def test_points_at_one_height_beside_a_can_are_no_handle(heights, handle):
     r, top, r_eps = 0.036, 0.147, 0.0068
     side = side_points(r, top, np.linspace(-1.4, 1.4, 60))
     bump = np.concatenate([side_points(r, top, np.linspace(0.2, 0.6, 4), dr=dr, z=heights) for dr in (0.016, 0.02)])
-    points = np.concatenate([side, bump])
-    ctx = type("Ctx", (), {"search": cs.CylinderSearchConfig(), "standing": points,
-                           "sensor": np.array([1.0, 0.0, 0.8])})()
-    why = cs._handle(points, 0.0, 0.0, np.hypot(points[:, 0], points[:, 1]), r, r_eps, 0.0, top, ctx)
+    why = handle_of(np.concatenate([side, bump]), r, top, r_eps)
     assert bool(why) == handle, why
 
 
@@ -833,7 +834,7 @@ def test_a_lid_over_a_round_object_claimed_below_it_is_its_top():
     can standing on it would reach, it is not."""
     ctx = cs._Context(config=af.AutoConfig(), search=cs.CylinderSearchConfig(), T_sensor_from_plane=np.eye(4),
                       sensor=np.zeros(3), standing=np.empty((0, 3)), rng=np.random.default_rng(0), found=[],
-                      claimed=[(0.07, 0.066, 0.081, 0.016, 0.060, False)])
+                      claimed=[cs._Claim(0.07, 0.066, 0.081, 0.016, 0.060, False)])
     assert cs._top_of_claimed(0.074, 0.054, 0.059, 0.070, 0.006, ctx)
     assert not cs._top_of_claimed(0.074, 0.054, 0.059, 0.060 + ctx.config.min_can_height, 0.006, ctx)
     assert not cs._top_of_claimed(0.2, 0.054, 0.059, 0.070, 0.006, ctx)
