@@ -360,13 +360,43 @@ def _search_cylinders(pts, T, viewpoint, config):
     points = [_native.extract(in_plane, idx).astype(float) for idx in clusters]
     found, rejections = can_search.search(points, standing, T, sensor_plane, config,
                                           ray_angle=g.ray_angle(grid, viewpoint))
-    cans = [dataclasses.replace(can, indices=_grid_indices(clusters[k][can.indices], in_plane.shape[:-1],
-                                                            pts.shape[:-1], step)) for k, can in found]
+    cans = [dataclasses.replace(can, indices=clusters[k][can.indices]) for k, can in found]
+    if grid.ndim == 3:
+        cans = cut_by_image_edge(cans, grid, 2 * config.r_eps)
+    cans = [dataclasses.replace(can, indices=_grid_indices(can.indices, in_plane.shape[:-1], pts.shape[:-1], step))
+            for can in cans]
     rejected = [RejectedCluster(centroid=transforms.apply(T, rj.centroid), n_points=rj.n_points, reason=rj.reason,
                                 radius=rj.radius) for _, rj in rejections]
     cans.sort(key=lambda c: -c.n_fit_points)
     t3 = time.perf_counter()
     return cans, rejected, {"transform": t1 - t0, "clusters": t2 - t1, "fits": t3 - t2}
+
+
+def cut_by_image_edge(cans, xyz, slab, margin=1):
+    """The cans (Can, indices: flattened pixels of xyz, float32 (H, W, 3) sensor frame, m) with what
+    the image's edge cuts (geometry.ends_at_image_edge, ends within slab m, margin px): end_seen False
+    when it cuts the far end (the top; a lying can's other end). A lying can cut at its origin's end
+    only is turned end for end, so that its origin is the end seen; cut at both, base_seen False."""
+    if not cans:
+        return cans
+    box = g.image_box(np.isfinite(xyz[..., 2]))
+    flat = xyz.reshape(-1, 3)
+    out = []
+    for can in cans:
+        rel = flat[can.indices].astype(float) - can.base_center
+        axial = rel @ can.axis
+        from_axis = np.linalg.norm(rel - axial[:, None] * can.axis, axis=1)
+        near, far = g.ends_at_image_edge(can.indices, xyz.shape[1], axial, from_axis, can.height, can.radius, box,
+                                         slab, margin)
+        if can.lying:
+            if near and not far:
+                turned = g.turned_end_for_end(can.T_sensor_from_can, can.height)
+                can = dataclasses.replace(can, T_sensor_from_can=turned)
+                near, far = False, True
+            out.append(dataclasses.replace(can, end_seen=not far, base_seen=not near))
+        else:
+            out.append(dataclasses.replace(can, end_seen=not far))
+    return out
 
 
 def find_cans(xyz, viewpoint=(0.0, 0.0, 0.0), config=AutoConfig()):

@@ -31,7 +31,9 @@ class Can:
     found can); base_seen: False when the base was hidden behind an object in front and inferred
     on the support; support_height: the base's height above the table (m; 0 on the table); lying:
     the can lies on its side (its axis, z of T_sensor_from_can, parallel to the table; origin the
-    centre of one end, height its length).
+    centre of one end, height its length); end_seen: False when the image's edge cuts its far end
+    (the top, or a lying can's other end; height is then the length seen; a lying can's origin is
+    the end seen, and base_seen False when the edge cuts both). Unorganized clouds: True.
     """
 
     T_sensor_from_can: np.ndarray
@@ -50,6 +52,7 @@ class Can:
     base_seen: bool = True
     support_height: float = 0.0
     lying: bool = False
+    end_seen: bool = True
 
     @property
     def base_center(self):
@@ -73,5 +76,5 @@ class Can:
                 "arc_coverage": self.arc_coverage, "n_points": self.n_points, "n_fit_points": self.n_fit_points,
                 "center_plane": np.asarray(self.center_plane).tolist(), "iterations": self.iterations,
                 "converged": self.converged, "support": self.support, "base_seen": self.base_seen,
-                "support_height": self.support_height, "lying": self.lying,
+                "support_height": self.support_height, "lying": self.lying, "end_seen": self.end_seen,
                 "T_sensor_from_can": self.T_sensor_from_can.tolist()}

@@ -341,6 +341,49 @@ def lying_can_pose(T_sensor_from_plane, start, direction):
     return np.asarray(T_sensor_from_plane, dtype=float) @ T
 
 
+def turned_end_for_end(T_sensor_from_can, length):
+    """The pose (4x4 float64) of the same cylinder from its other end: origin moved `length` (m)
+    along z, z and y reversed, x kept."""
+    T = np.asarray(T_sensor_from_can, dtype=float).copy()
+    T[:3, 3] += length * T[:3, 2]
+    T[:3, 1:3] *= -1.0
+    return T
+
+
+def image_box(valid):
+    """(first row, last row, first column, last column) of the True pixels of a (H, W) bool mask
+    (where the sensor returned depth): the image's edge as the sensor sees it (a Kinect's
+    registered depth has columns of holes at its sides). None when no pixel is True."""
+    rows, cols = np.flatnonzero(valid.any(axis=1)), np.flatnonzero(valid.any(axis=0))
+    if len(rows) == 0:
+        return None
+    return int(rows[0]), int(rows[-1]), int(cols[0]), int(cols[-1])
+
+
+def ends_at_image_edge(indices, width, axial, from_axis, length, radius, box, slab, margin=1):
+    """Whether the image's edge cuts each end of a cylinder seen in an organized cloud: (near, far),
+    the ends at axial 0 and `length` (m).
+
+    indices: flattened pixel indices (int (N,), image `width` px wide) of its points; axial, from_axis:
+    their coordinates along its axis and distances from it (m, float (N,)); box: image_box of the
+    image. An end is cut when some of its points within `slab` (m) of it lie within `margin` (px) of
+    the box's edge and none on the inner half of its disc is seen (a lid seen gives the height, cut
+    or not). When points near both ends and between them lie on the edge, it lies along the edge:
+    neither end is cut."""
+    rows, cols = np.divmod(np.asarray(indices, dtype=np.int64), width)
+    r0, r1, c0, c1 = box
+    on_edge = (rows <= r0 + margin) | (rows >= r1 - margin) | (cols <= c0 + margin) | (cols >= c1 - margin)
+    axial = np.asarray(axial, dtype=float)
+    t = axial[on_edge]
+    near, far = bool(np.any(t <= slab)), bool(np.any(t >= length - slab))
+    if near and far and np.any((t > slab) & (t < length - slab)):
+        return False, False
+    inner = np.asarray(from_axis, dtype=float) < 0.5 * radius
+    near = near and not np.any(inner & (axial <= slab))
+    far = far and not np.any(inner & (axial >= length - slab))
+    return near, far
+
+
 def _xy(xy):
     """xy as float64 (N, 2): the first two columns of an (N, 2) or (N, 3) plane-frame array."""
     xy = np.asarray(xy, dtype=float)

@@ -550,7 +550,7 @@ class LocalFinder:
                 if not defer:
                     timings["cans"] = time.perf_counter() - t
                     return lost, False
-        cans = [refitted[k] for k in sorted(refitted)]
+        cans = af.cut_by_image_edge([refitted[k] for k in sorted(refitted)], pts, 2 * c.auto.r_eps, margin=2)
         timings["cans"] = time.perf_counter() - t
         t = time.perf_counter()
         standing, grid = standing_grid(pts, T, c, self.viewpoint)

@@ -127,7 +127,8 @@ def can_message(can, track_id=0, age=0, confidence=1.0, velocity=(0.0, 0.0, 0.0)
                   height=float(can.height), fit_rms=float(can.rms_error), visible_arc=float(can.arc_coverage),
                   n_points=int(can.n_fit_points), age=int(age), confidence=float(confidence),
                   velocity=Vector3(*(float(v) for v in velocity)), support=str(can.support),
-                  base_seen=bool(can.base_seen), shape=cylinder_primitive(can.radius, can.height))
+                  base_seen=bool(can.base_seen), end_seen=bool(can.end_seen),
+                  shape=cylinder_primitive(can.radius, can.height))
 
 
 def can_array(cans, frame_id, stamp=None):

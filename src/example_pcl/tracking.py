@@ -13,9 +13,11 @@ m), ``axis`` (unit (3,)), ``radius``, ``height`` (m), ``rms_error`` (m), ``arc_c
   with a new id (ids count up from 1 and are never reused, not even after a reset). The centre
   is an upright can's base centre, and the middle of a lying can's axis (a detection with
   ``lying`` true: base_center one end, axis along it, height its length), which does not
-  depend on the end its pose starts from; a lying detection never continues an upright track
-  nor the reverse (a can that falls over, or is stood up, is a new track: it is grasped
-  differently, and a lying can beside an upright one cannot take its id).
+  depend on the end its pose starts from (but with ``end_seen`` false, the image's edge cutting
+  the other end, the track's pose starts from the detection's end, the end seen); a lying
+  detection never continues an upright track nor the reverse (a can that falls over, or is
+  stood up, is a new track: it is grasped differently, and a lying can beside an upright one
+  cannot take its id).
 * **Smoothing.** The centre runs two constant-velocity Kalman filters (each with one 2x2
   covariance shared by x, y and z; measurement noise ``position_noise``): a *steady* one
   (white acceleration ``accel_noise``: heavy smoothing, a static can's jitter well below the
@@ -293,6 +295,9 @@ class CanTracker:
         track.age += 1
         track.missed = 0
         n = max(1.0 / track.hits, c.axis_gain)
+        if track.lying and not getattr(detection, "end_seen", True) and m["axis"] @ track.axis < 0:
+            # The image's edge cuts the can's far end: its pose starts from the end seen, as the detection's.
+            track.axis, track.mean_axis_innovation = -track.axis, -track.mean_axis_innovation
         axis = m["axis"] if m["axis"] @ track.axis >= 0 else -m["axis"]
         # As the centre's: innovations across the axis (2 degrees of freedom) that do not average out.
         track.mean_axis_innovation = (1 - w) * track.mean_axis_innovation + w * (axis - track.axis)

@@ -232,6 +232,56 @@ def test_message_counts_the_lying_cans():
     assert result.message.startswith("found 2 can(s), 1 lying, radii "), result.message
 
 
+def _lying_can_seed_5():
+    """A "lying can" scene (development seed 5: a lying can across columns 282-360 beside an upright
+    can) and its lying can's ends (plane frame, m) and T_plane_from_sensor."""
+    from example_pcl import scene_objects, transforms
+
+    spec = scene_objects.case_spec("lying can", 5)
+    scene = sc.generate_scene(spec)
+    truth = next(t for t in scene.truth["objects"] if t["lying"])
+    to_plane = transforms.invert(np.asarray(scene.truth["camera_from_table"]))
+    start = transforms.apply(to_plane, truth["base_center"])
+    end = transforms.apply(to_plane, np.asarray(truth["base_center"]) + truth["height"] * np.asarray(truth["axis"]))
+    return scene, (start, end), to_plane
+
+
+@pytest.mark.parametrize("how", ["cropped", "holes"])
+def test_a_lying_can_cut_by_the_image_edge_starts_from_the_end_seen(how):
+    """The image ends at column 330, across a lying can (cropped, or NaN beyond as a Kinect's
+    border): end_seen False, its origin the end seen (within 4 mm of the truth's), its axis toward
+    the end cut off, its height shorter than the can; in full view, end_seen True."""
+    from example_pcl import transforms
+
+    scene, ends, to_plane = _lying_can_seed_5()
+    full = af.find_cans(scene.xyz)
+    assert len(full.cans) == 2 and all(c.end_seen and c.base_seen for c in full.cans)
+    if how == "cropped":
+        xyz = np.ascontiguousarray(scene.xyz[:, :330])
+    else:
+        xyz = scene.xyz.copy()
+        xyz[:, 330:] = np.nan
+    cans = af.find_cans(xyz).cans
+    assert len(cans) == 1 and cans[0].lying  # the upright can stands beyond column 394
+    can = cans[0]
+    assert not can.end_seen and can.base_seen
+    origin = transforms.apply(to_plane, can.base_center)
+    seen, cut = sorted(ends, key=lambda e: np.linalg.norm(e[:2] - origin[:2]))
+    assert np.linalg.norm(origin[:2] - seen[:2]) < 0.004
+    assert (transforms.apply(to_plane, can.base_center + can.axis) - origin) @ (cut - seen) > 0
+    assert can.height < np.linalg.norm(cut - seen) - 0.02
+    assert can.to_dict()["end_seen"] is False
+
+
+def test_an_upright_can_whose_top_is_cut_by_the_image_edge_says_so():
+    """The image begins at row 180, across the upright can's upper part: end_seen False, its height
+    what is seen (less than its 150 mm)."""
+    scene, _, _ = _lying_can_seed_5()
+    upright = [c for c in af.find_cans(np.ascontiguousarray(scene.xyz[180:])).cans if not c.lying]
+    assert len(upright) == 1 and not upright[0].end_seen and upright[0].base_seen
+    assert upright[0].height < 0.145
+
+
 @pytest.mark.parametrize("xyz", [np.full((48, 64, 3), np.nan, np.float32), np.zeros((0, 3), np.float32)],
                          ids=["all NaN", "empty"])
 def test_no_points_is_a_clear_error(xyz):

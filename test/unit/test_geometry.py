@@ -486,6 +486,50 @@ def test_lying_can_pose_axis_along_the_direction_and_x_up():
     assert_allclose(pose[:3, 3], [0.1, -0.2, 0.03], atol=1e-12)
 
 
+def test_turned_end_for_end_is_the_same_lying_can_from_its_other_end():
+    """turned_end_for_end: the pose lying_can_pose gives from the other end, the opposite direction."""
+    rng = np.random.default_rng(15)
+    T = random_rigid(rng)
+    u = np.array([np.cos(0.7), np.sin(0.7), 0.0])
+    start = np.array([0.1, -0.2, 0.03])
+    turned = g.turned_end_for_end(g.lying_can_pose(T, start, u), 0.12)
+    assert_allclose(turned, g.lying_can_pose(T, start + 0.12 * u, -u), atol=1e-12)
+
+
+def test_image_box_spans_the_pixels_with_depth():
+    """image_box: first and last rows and columns holding a True pixel; None for an empty mask."""
+    valid = np.zeros((48, 64), dtype=bool)
+    valid[3:40, 8:60] = True
+    valid[3:5, 8:10] = False  # a hole at a corner does not move the box
+    assert g.image_box(valid) == (3, 39, 8, 59)
+    assert g.image_box(np.zeros((4, 4), dtype=bool)) is None
+
+
+def test_ends_at_image_edge_near_far_and_along_the_edge():
+    """ends_at_image_edge: an end is cut when its points within the slab reach the box's edge and its
+    disc is not seen; a cylinder whose points lie on the edge all along is not cut at either end."""
+    width, box, radius = 64, (0, 47, 8, 63), 0.03
+    axial, side = np.linspace(0.0, 0.1, 11), np.full(11, radius)  # eleven points on its side
+
+    def cut(indices, from_axis=side, **kw):
+        return g.ends_at_image_edge(indices, width, axial, from_axis, 0.1, radius, box, slab=0.01, **kw)
+
+    inside = [20 * width + c for c in range(20, 31)]  # row 20, columns 20..30: away from every edge
+    assert cut(inside) == (False, False)
+    far_cut = inside[:-1] + [20 * width + 62]  # its last point one pixel from the right edge
+    assert cut(far_cut) == (False, True)
+    lid = side.copy()
+    lid[-1] = 0.01  # the far end's point on the inner half of its disc (a lid cut by the edge): seen
+    assert cut(far_cut, lid) == (False, False)
+    near_cut = [20 * width + 9] + inside[1:]  # its first point on the left edge of the box (column 8)
+    assert cut(near_cut) == (True, False)
+    assert cut(near_cut, margin=0) == (False, False)
+    along = [46 * width + c for c in range(20, 31)]  # every point on the last row but one
+    assert cut(along) == (False, False)
+    both = [20 * width + 9] + inside[1:-1] + [20 * width + 62]  # through the image, edge to edge
+    assert cut(both) == (True, True)
+
+
 def test_footprint_center_is_the_base_or_a_lying_axis_middle():
     """footprint_center: the base centre of an upright can; the middle of a lying can's axis."""
     base, axis = np.array([0.1, 0.2, 0.3]), np.array([0.0, 1.0, 0.0])

@@ -106,6 +106,29 @@ def test_adopt_keeps_the_fresher_refit_of_a_lying_can(frames):
     assert len(finder._cans) == len(old.cans)
 
 
+def test_the_refit_says_when_the_image_edge_cuts_a_lying_cans_end(frames):
+    """Frames whose left part is holes up to a third of the lying can (as a Kinect's border), the
+    upright cans still in view: the refit reports the lying can with end_seen False, its origin the
+    end seen (within 5 mm of the truth's), its axis toward the end cut off."""
+    finder = lf.LocalFinder()
+    width = frames[10].xyz.shape[1]
+    cols = next(c for c in finder.process(frames[10].xyz).cans if c.lying).indices % width
+    cut = int(cols.min() + (cols.max() - cols.min()) // 3)
+    for k in (11, 12, 13):
+        xyz = frames[k].xyz.copy()
+        xyz[:, :cut] = np.nan
+        fit = finder.process(xyz)
+        assert not fit.searched, fit.reason
+        can = next(c for c in fit.cans if c.lying)
+        assert not can.end_seen and can.base_seen
+        truth = lying_truth(frames[k])
+        ends = [np.asarray(truth["base_center"]), np.asarray(truth["base_center"]) + truth["height"] * np.asarray(
+            truth["axis"])]
+        seen, cut_off = sorted(ends, key=lambda e: np.linalg.norm(e - can.base_center))
+        assert np.linalg.norm(seen - can.base_center) < 0.005
+        assert can.axis @ (cut_off - seen) > 0
+
+
 @pytest.fixture(scope="module")
 def tracked(frames):
     """(FrameFits, TrackerUpdates) of the sequence through LocalFinder (a full search every 10

@@ -1,4 +1,6 @@
 """Tests of example_pcl.messages: arrays -> poses and markers (message classes, no master)."""
+import dataclasses
+
 import numpy as np
 import pytest
 import rospy
@@ -93,6 +95,17 @@ def test_can_poses_and_markers_one_per_can(n):
         assert (marker.type, marker.action, marker.ns, marker.id) == (Marker.CYLINDER, Marker.ADD, messages.CANS_NS, i)
         assert marker.scale.x == pytest.approx(2 * can.radius) and marker.scale.z == pytest.approx(can.height)
         assert marker.header.stamp == stamp
+
+
+def test_can_message_carries_support_and_what_was_seen():
+    """support, base_seen and end_seen reach the message as the Can has them."""
+    T = np.eye(4)
+    can = Can(T_sensor_from_can=T, radius=0.03, height=0.1, rms_error=0.001, arc_coverage=2.0, n_points=300,
+              n_fit_points=250, center_plane=np.zeros(2), support="can", base_seen=False, end_seen=False)
+    msg = messages.can_message(can, track_id=2)
+    assert (msg.id, msg.support, msg.base_seen, msg.end_seen) == (2, "can", False, False)
+    seen = messages.can_message(dataclasses.replace(can, base_seen=True, end_seen=True))
+    assert (seen.base_seen, seen.end_seen) == (True, True)
 
 
 def _track(track_id, seen=True):

@@ -11,4 +11,4 @@ def test_can_array_fields():
         "id": "uint32", "pose": "geometry_msgs/Pose", "radius": "float64", "height": "float64",
         "fit_rms": "float64", "visible_arc": "float64", "n_points": "uint32", "age": "uint32",
         "confidence": "float32", "velocity": "geometry_msgs/Vector3", "support": "string", "base_seen": "bool",
-        "shape": "shape_msgs/SolidPrimitive"}
+        "end_seen": "bool", "shape": "shape_msgs/SolidPrimitive"}

@@ -264,6 +264,23 @@ def test_lying_can_keeps_its_id_whichever_end_its_pose_starts_from():
     assert_allclose(t.pose[:3, 3], t.base_center) and abs(t.axis[0]) > 0.999
 
 
+def test_a_lying_track_starts_from_the_end_seen_when_the_image_cuts_the_other():
+    """A lying can followed from one end, then detected from the other with end_seen False (the image's
+    edge cuts the first): the track's pose starts from the end seen, keeps its id and middle, and
+    keeps that sense once the detections see both ends again."""
+    tracker = tr.CanTracker()
+    middle = np.array([0.1, 0.0, 1.0])
+    run(tracker, [[lying(middle)]] * 5)
+    cut = lying(middle, flip=True)
+    cut.end_seen = False
+    updates = run(tracker, [[cut]] * 3 + [[lying(middle)]] * 3, start=5)
+    for u in updates:
+        t = u.tracks[0]
+        assert t.id == 1 and t.axis[0] < -0.999
+        assert_allclose(t.center, middle, atol=1e-6)
+        assert_allclose(t.pose[:3, 3], middle + [0.06, 0.0, 0.0], atol=1e-6)
+
+
 def test_lying_and_upright_cans_never_swap_ids():
     """A lying can's detection nearer to an upright can's track than to its own still continues its
     own (and the reverse): lying and upright tracks are never matched across."""
