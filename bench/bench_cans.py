@@ -14,8 +14,9 @@ Per case: cans found / missed / false (an upright can reported where there is no
 upright report of a lying can; a generated can less than a quarter in view - fewer of its pixels
 return depth than a quarter of those it shows alone - is neither found nor missed: reported apart,
 "hidden found"), lying cans reported as lying (axis within 10 degrees of the truth's
-and the middle of the axis within the match distance horizontally: 15 mm generated, 20 mm real; with
-the median of both errors; a real lying can's truth is the horizontal cylinder fitted to its labelled
+and the middle of the axis within the match distance horizontally: 15 mm generated, 20 mm real; one
+whose far end the image's edge cuts, end_seen False, by the end it reports seen; with the median of both
+errors; a real lying can's truth is the horizontal cylinder fitted to its labelled
 side points: lying_truth), median centre error (mm, horizontal,
 against the truth's axis), median top error (mm, generated upright cans: the found top's height
 against the truth's, where a gripper closes on a can from above) and time per frame (median / p90
@@ -82,16 +83,17 @@ class Tally:
 def score(tally, found_cans, true_cans, true_lying, to_plane, match):
     """Matches found cans (sensor frame) with the truth (plane-frame dicts: center (x, y), radius,
     support_height, base_seen, top (generated: the top's height, m); lying: center (x, y, z) the middle of its
-    axis, axis (unit, horizontal); either: hidden (optional, less than MIN_IN_VIEW in view))."""
+    axis, axis (unit, horizontal), length; either: hidden (optional, less than MIN_IN_VIEW in view))."""
     used, used_lying = set(), set()
     for can in found_cans:
         base = transforms.apply(to_plane, can.base_center)
         if can.lying:
             # A lying can is found when its axis is within LYING_ANGLE of the truth's and the middle
-            # of its axis within `match` of the truth's (horizontally).
-            mid = transforms.apply(to_plane, can.base_center + 0.5 * can.height * can.axis)
-            axis = transforms.apply(to_plane, can.base_center + can.axis) - transforms.apply(to_plane, can.base_center)
-            hits = [(np.linalg.norm(mid[:2] - t["center"][:2]), k) for k, t in enumerate(true_lying)
+            # of its axis within `match` of the truth's (horizontally); one whose far end the image's
+            # edge cuts (end_seen False), when its origin, the end seen, is within `match` of the
+            # truth's nearer end (both ends cut: its middle within `match` of the truth's axis).
+            axis = transforms.apply(to_plane, can.base_center + can.axis) - base
+            hits = [(_lying_error(can, base, axis, t, to_plane), k) for k, t in enumerate(true_lying)
                     if k not in used_lying and abs(axis @ t["axis"]) >= np.cos(LYING_ANGLE)]
             error, k = min(hits) if hits else (np.inf, -1)
             if error >= match:
@@ -131,6 +133,19 @@ def score(tally, found_cans, true_cans, true_lying, to_plane, match):
     tally.hidden_total += sum(t.get("hidden", False) for t in true_cans + true_lying)
 
 
+def _lying_error(can, start, axis, truth, to_plane):
+    """Horizontal error (m) of a lying can found (start: its origin, axis: unit, plane frame) against a
+    true lying can (score's dict), as score matches them."""
+    mid = transforms.apply(to_plane, can.base_center + 0.5 * can.height * can.axis)
+    if can.end_seen:
+        return float(np.linalg.norm(mid[:2] - truth["center"][:2]))
+    if can.base_seen:
+        ends = [truth["center"] + s * 0.5 * truth["length"] * truth["axis"] for s in (-1.0, 1.0)]
+        return float(min(np.linalg.norm(start[:2] - e[:2]) for e in ends))
+    rel = mid[:2] - truth["center"][:2]
+    return float(abs(rel @ np.array([-truth["axis"][1], truth["axis"][0]])))
+
+
 def generated_truth(spec, scene):
     """(T_plane_from_sensor, true cans, true lying cans) of a generated scene (score's dicts); a can
     is hidden when fewer of its pixels return depth than MIN_IN_VIEW of those it shows alone."""
@@ -147,7 +162,8 @@ def generated_truth(spec, scene):
                          "hidden": hidden})
         else:
             a = transforms.apply(to_plane, np.asarray(t["base_center"]) + t["height"] * np.asarray(t["axis"]))
-            lying.append({"center": 0.5 * (p + a), "axis": (a - p) / np.linalg.norm(a - p), "hidden": hidden})
+            lying.append({"center": 0.5 * (p + a), "axis": (a - p) / np.linalg.norm(a - p),
+                          "length": float(np.linalg.norm(a - p)), "hidden": hidden})
     return to_plane, cans, lying
 
 
@@ -190,10 +206,11 @@ def real_truth(cloud, objects):
 
 def lying_truth(pts, turn=np.radians(6), step=np.radians(0.1), end=0.015):
     """A real lying can's truth from its labelled points (plane frame, m): {"center": the middle of
-    its axis (3,), "axis": unit, horizontal}. The horizontal direction within `turn` of the points'
-    principal direction seen from above (every `step`) whose cross-section circle, fitted to the side
-    points (without `end` at either end of their span) as an upright can's truth is, leaves the least
-    rms residual within 6 mm; the middle is the circle's centre at the middle of the span."""
+    its axis (3,), "axis": unit, horizontal, "length": the span of its labelled points along it}.
+    The horizontal direction within `turn` of the points' principal direction seen from above
+    (every `step`) whose cross-section circle, fitted to the side points (without `end` at either end
+    of their span) as an upright can's truth is, leaves the least rms residual within 6 mm; the
+    middle is the circle's centre at the middle of the span."""
     mean = pts[:, :2].mean(axis=0)
     u = np.linalg.eigh(np.cov((pts[:, :2] - mean).T))[1][:, 1]
     best = None
@@ -211,7 +228,7 @@ def lying_truth(pts, turn=np.radians(6), step=np.radians(0.1), end=0.015):
         if best is None or rms < best[0]:
             middle = mean + 0.5 * (lo + hi) * u + fit.center[0] * n
             best = (rms, {"center": np.array([middle[0], middle[1], fit.center[1]]),
-                          "axis": np.array([u[0], u[1], 0.0])})
+                          "axis": np.array([u[0], u[1], 0.0]), "length": float(hi - lo)})
     return best[1]
 
 

@@ -33,6 +33,28 @@ def test_a_can_reported_twice_counts_once_and_once_false():
     assert (tally.found, tally.missed, tally.false) == (1, 0, 1)
 
 
+def lying(start, direction, length, end_seen=True, base_seen=True):
+    return SimpleNamespace(base_center=np.asarray(start, dtype=float), axis=np.asarray(direction, dtype=float),
+                           height=length, lying=True, end_seen=end_seen, base_seen=base_seen)
+
+
+def test_a_lying_can_cut_by_the_image_edge_is_matched_by_the_end_it_reports_seen():
+    """A lying can 0.19 m long, 0.1 m of it seen from its end at x = -0.095: reported with end_seen
+    False from that end it is found (0.5 mm); the same report with end_seen True is judged by its
+    middle, 45 mm off, and is false; cut at both ends, by its middle's distance from the axis."""
+    truth = [{"center": np.array([0.0, 0.0, 0.03]), "axis": np.array([1.0, 0.0, 0.0]), "length": 0.19}]
+    cases = [(lying([-0.0955, 0.0, 0.03], [1.0, 0.0, 0.0], 0.1, end_seen=False), (1, 0)),
+             (lying([-0.0955, 0.0, 0.03], [1.0, 0.0, 0.0], 0.1), (0, 1)),
+             (lying([-0.0955, 0.003, 0.03], [1.0, 0.0, 0.0], 0.1, end_seen=False, base_seen=False), (1, 0))]
+    for found, (n_lying, n_false) in cases:
+        tally = bench_cans.Tally()
+        bench_cans.score(tally, [found], [], truth, np.eye(4), 0.015)
+        assert (tally.lying, tally.false, tally.lying_total) == (n_lying, n_false, 1)
+    tally = bench_cans.Tally()
+    bench_cans.score(tally, [cases[0][0]], [], truth, np.eye(4), 0.015)
+    np.testing.assert_allclose(tally.lying_errors, [0.0005], atol=1e-9)
+
+
 def test_a_real_lying_cans_truth_is_the_cylinder_its_labelled_points_lie_on():
     """The labelled points of a lying can seen from one side (its near half, noisy, and one end's
     disc): the truth's axis is the cylinder's, its middle the middle of the span along it, not the
