@@ -264,9 +264,10 @@ class CanFinder:
         self.can_radius, self.can_height = best.radius, best.height
         models = [_native.transform_cloud(geometry.make_can_cloud(c.radius, c.height), c.T_sensor_from_can)
                   for c in found.cans]
-        b = best.base_center
-        message = (f"{found.message}; best: base centre {_fmt(b)} m, radius {best.radius * 1e3:.1f} mm, height "
-                   f"{best.height * 1e3:.0f} mm, RMS radial error {best.rms_error * 1e3:.1f} mm over "
+        origin, size = ("lying, end centre", "length") if best.lying else ("base centre", "height")
+        cut = ", its far end beyond the image's edge" if not best.end_seen else ""
+        message = (f"{found.message}; best: {origin} {_fmt(best.base_center)} m, radius {best.radius * 1e3:.1f} mm, "
+                   f"{size} {best.height * 1e3:.0f} mm{cut}, RMS radial error {best.rms_error * 1e3:.1f} mm over "
                    f"{best.n_fit_points} points ({found.timings['total'] * 1e3:.0f} ms)")
         return StepResult(Mode.FIND_CAN_AUTO, message, np.concatenate(models), best, tuple(found.cans))
 

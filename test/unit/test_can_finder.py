@@ -318,6 +318,19 @@ def test_mode_4_finds_every_can_without_a_selection():
     assert np.allclose(f.can.T_sensor_from_can, result.cans[0].T_sensor_from_can)
     assert abs(f.plane.normal @ np.asarray(scene.truth["table"]["normal"])) > np.cos(np.radians(0.5))
     assert "found 2 can(s)" in result.message
+    assert "best: base centre" in result.message and "image's edge" not in result.message
+
+
+def test_mode_4_says_when_the_best_can_lies_and_the_image_cuts_it():
+    """A lying can cut by the image's edge at column 330 (development seed 5 of "lying can"): mode 4's
+    answer gives it from the end seen, its length, and says its far end is beyond the image's edge."""
+    from example_pcl import scene_objects
+
+    xyz = np.ascontiguousarray(sc.generate_scene(scene_objects.case_spec("lying can", 5)).xyz[:, :330])
+    result = CanFinder(xyz, FinderConfig()).process(4)
+    assert len(result.cans) == 1 and result.cans[0].lying and not result.cans[0].end_seen
+    assert "best: lying, end centre" in result.message and ", length " in result.message
+    assert "its far end beyond the image's edge" in result.message
 
 
 def test_mode_4_with_no_can_fails_with_the_reason():
