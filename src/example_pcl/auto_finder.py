@@ -379,15 +379,17 @@ def cut_by_image_edge(cans, xyz, slab, margin=1):
     only is turned end for end, so that its origin is the end seen; cut at both, base_seen False."""
     if not cans:
         return cans
-    box = g.image_box(np.isfinite(xyz[..., 2]))
+    box = g.image_box(xyz[..., 2])
     flat = xyz.reshape(-1, 3)
     out = []
     for can in cans:
-        rel = flat[can.indices].astype(float) - can.base_center
-        axial = rel @ can.axis
-        from_axis = np.linalg.norm(rel - axial[:, None] * can.axis, axis=1)
-        near, far = g.ends_at_image_edge(can.indices, xyz.shape[1], axial, from_axis, can.height, can.radius, box,
-                                         slab, margin)
+        on_edge = g.on_image_edge(can.indices, xyz.shape[1], box, margin)
+        near = far = False
+        if on_edge.any():  # most cans are nowhere near the edge: no more work for them
+            rel = flat[can.indices].astype(float) - can.base_center
+            axial = rel @ can.axis
+            from_axis = np.linalg.norm(rel - axial[:, None] * can.axis, axis=1)
+            near, far = g.ends_at_image_edge(on_edge, axial, from_axis, can.height, can.radius, slab)
         if can.lying:
             if near and not far:
                 turned = g.turned_end_for_end(can.T_sensor_from_can, can.height)

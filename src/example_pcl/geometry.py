@@ -350,29 +350,35 @@ def turned_end_for_end(T_sensor_from_can, length):
     return T
 
 
-def image_box(valid):
-    """(first row, last row, first column, last column) of the True pixels of a (H, W) bool mask
-    (where the sensor returned depth): the image's edge as the sensor sees it (a Kinect's
-    registered depth has columns of holes at its sides). None when no pixel is True."""
-    rows, cols = np.flatnonzero(valid.any(axis=1)), np.flatnonzero(valid.any(axis=0))
+def image_box(depth, step=8):
+    """(first row, last row, first column, last column) of the pixels with depth (finite) of a (H, W)
+    image: the image's edge as the sensor sees it (a Kinect's registered depth has columns of holes at
+    its sides). Rows are judged on every step-th column, columns on every step-th row (a row with
+    depth has it in many columns; the tracker marks every frame). None when no pixel has depth."""
+    rows = np.flatnonzero(np.isfinite(depth[:, ::step]).any(axis=1))
+    cols = np.flatnonzero(np.isfinite(depth[::step, :]).any(axis=0))
     if len(rows) == 0:
         return None
     return int(rows[0]), int(rows[-1]), int(cols[0]), int(cols[-1])
 
 
-def ends_at_image_edge(indices, width, axial, from_axis, length, radius, box, slab, margin=1):
+def on_image_edge(indices, width, box, margin=1):
+    """Whether each pixel (flattened indices, int (N,), of an image `width` px wide) lies within
+    `margin` px of the edge of box (image_box): bool (N,)."""
+    rows, cols = np.divmod(np.asarray(indices, dtype=np.int64), width)
+    r0, r1, c0, c1 = box
+    return (rows <= r0 + margin) | (rows >= r1 - margin) | (cols <= c0 + margin) | (cols >= c1 - margin)
+
+
+def ends_at_image_edge(on_edge, axial, from_axis, length, radius, slab):
     """Whether the image's edge cuts each end of a cylinder seen in an organized cloud: (near, far),
     the ends at axial 0 and `length` (m).
 
-    indices: flattened pixel indices (int (N,), image `width` px wide) of its points; axial, from_axis:
-    their coordinates along its axis and distances from it (m, float (N,)); box: image_box of the
-    image. An end is cut when some of its points within `slab` (m) of it lie within `margin` (px) of
-    the box's edge and none on the inner half of its disc is seen (a lid seen gives the height, cut
-    or not). When points near both ends and between them lie on the edge, it lies along the edge:
-    neither end is cut."""
-    rows, cols = np.divmod(np.asarray(indices, dtype=np.int64), width)
-    r0, r1, c0, c1 = box
-    on_edge = (rows <= r0 + margin) | (rows >= r1 - margin) | (cols <= c0 + margin) | (cols >= c1 - margin)
+    on_edge: whether each of its points lies on the image's edge (on_image_edge, bool (N,)); axial,
+    from_axis: their coordinates along its axis and distances from it (m, float (N,)). An end is cut
+    when some of its points within `slab` (m) of it lie on the edge and none on the inner half of
+    its disc is seen (a lid seen gives the height, cut or not). When points near both ends and
+    between them lie on the edge, it lies along the edge: neither end is cut."""
     axial = np.asarray(axial, dtype=float)
     t = axial[on_edge]
     near, far = bool(np.any(t <= slab)), bool(np.any(t >= length - slab))

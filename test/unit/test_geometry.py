@@ -497,25 +497,28 @@ def test_turned_end_for_end_is_the_same_lying_can_from_its_other_end():
 
 
 def test_image_box_spans_the_pixels_with_depth():
-    """image_box: first and last rows and columns holding a True pixel; None for an empty mask."""
-    valid = np.zeros((48, 64), dtype=bool)
-    valid[3:40, 8:60] = True
-    valid[3:5, 8:10] = False  # a hole at a corner does not move the box
-    assert g.image_box(valid) == (3, 39, 8, 59)
-    assert g.image_box(np.zeros((4, 4), dtype=bool)) is None
+    """image_box: first and last rows and columns holding depth; None for an image without any."""
+    depth = np.full((48, 64), np.nan, dtype=np.float32)
+    depth[3:40, 8:60] = 1.0
+    depth[3:5, 8:10] = np.nan  # a hole at a corner does not move the box
+    assert g.image_box(depth) == (3, 39, 8, 59)
+    assert g.image_box(depth, step=1) == (3, 39, 8, 59)
+    assert g.image_box(np.full((4, 4), np.nan)) is None
 
 
 def test_ends_at_image_edge_near_far_and_along_the_edge():
-    """ends_at_image_edge: an end is cut when its points within the slab reach the box's edge and its
-    disc is not seen; a cylinder whose points lie on the edge all along is not cut at either end."""
+    """on_image_edge and ends_at_image_edge: an end is cut when its points within the slab reach the
+    box's edge and its disc is not seen; a cylinder whose points lie on the edge all along is not cut
+    at either end."""
     width, box, radius = 64, (0, 47, 8, 63), 0.03
     axial, side = np.linspace(0.0, 0.1, 11), np.full(11, radius)  # eleven points on its side
 
-    def cut(indices, from_axis=side, **kw):
-        return g.ends_at_image_edge(indices, width, axial, from_axis, 0.1, radius, box, slab=0.01, **kw)
+    def cut(indices, from_axis=side, margin=1):
+        on_edge = g.on_image_edge(indices, width, box, margin)
+        return g.ends_at_image_edge(on_edge, axial, from_axis, 0.1, radius, slab=0.01)
 
     inside = [20 * width + c for c in range(20, 31)]  # row 20, columns 20..30: away from every edge
-    assert cut(inside) == (False, False)
+    assert not g.on_image_edge(inside, width, box).any() and cut(inside) == (False, False)
     far_cut = inside[:-1] + [20 * width + 62]  # its last point one pixel from the right edge
     assert cut(far_cut) == (False, True)
     lid = side.copy()
