@@ -372,24 +372,26 @@ def _search_cylinders(pts, T, viewpoint, config):
     return cans, rejected, {"transform": t1 - t0, "clusters": t2 - t1, "fits": t3 - t2}
 
 
-def cut_by_image_edge(cans, xyz, slab, margin=1):
-    """The cans (Can, indices: flattened pixels of xyz, float32 (H, W, 3) sensor frame, m) with what
-    the image's edge cuts (geometry.ends_at_image_edge, ends within slab m, margin px): end_seen False
-    when it cuts the far end (the top; a lying can's other end). A lying can cut at its origin's end
-    only is turned end for end, so that its origin is the end seen; cut at both, base_seen False."""
+def cut_by_image_edge(cans, xyz, reach, margin=1):
+    """The cans (Can, indices: flattened pixels of xyz, float32 (H, W, 3) camera frame, m) with what
+    the image's edge cuts: an end is cut when some of the can's pixels lie within margin px of the
+    edge (geometry.image_box) and its axis, `reach` m beyond that end, leaves the image (the can may
+    go on there unseen). end_seen False when it cuts the far end (the top; a lying can's other end).
+    A lying can cut at its origin's end only is turned end for end, so that its origin is the end
+    seen; cut at both, base_seen False."""
     if not cans:
         return cans
-    box = g.image_box(xyz[..., 2])
-    flat = xyz.reshape(-1, 3)
+    box, camera = g.image_box(xyz[..., 2]), None
     out = []
     for can in cans:
-        on_edge = g.on_image_edge(can.indices, xyz.shape[1], box, margin)
         near = far = False
-        if on_edge.any():  # most cans are nowhere near the edge: no more work for them
-            rel = flat[can.indices].astype(float) - can.base_center
-            axial = rel @ can.axis
-            from_axis = np.linalg.norm(rel - axial[:, None] * can.axis, axis=1)
-            near, far = g.ends_at_image_edge(on_edge, axial, from_axis, can.height, can.radius, slab)
+        # A can the edge cuts shows pixels on it: most cans are nowhere near it.
+        if g.on_image_edge(can.indices, xyz.shape[1], box, margin).any():
+            camera = camera or g.pinhole(xyz)
+            if camera is not None:
+                beyond = can.base_center + np.outer([-reach, can.height + reach], can.axis)
+                near, far = (bool(v) for v in g.outside_image(beyond, camera, box, margin))
+                near = near and can.lying  # an upright can's base is on its support, not beyond it
         if can.lying:
             if near and not far:
                 turned = g.turned_end_for_end(can.T_sensor_from_can, can.height)

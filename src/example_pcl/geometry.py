@@ -370,24 +370,37 @@ def on_image_edge(indices, width, box, margin=1):
     return (rows <= r0 + margin) | (rows >= r1 - margin) | (cols <= c0 + margin) | (cols >= c1 - margin)
 
 
-def ends_at_image_edge(on_edge, axial, from_axis, length, radius, slab):
-    """Whether the image's edge cuts each end of a cylinder seen in an organized cloud: (near, far),
-    the ends at axial 0 and `length` (m).
+def pinhole(xyz, step=8, max_error=2.0):
+    """The pinhole camera of an organized cloud (float (H, W, 3), camera frame, z along the optical
+    axis, m), fitted to every step-th pixel with depth: (fx, cx, fy, cy) in its pixels, column =
+    fx x / z + cx and row = fy y / z + cy. None when fewer than 10 such pixels, or when they miss
+    their pixels by more than max_error px rms (no camera's frame, or no pinhole)."""
+    sample = np.asarray(xyz[::step, ::step], dtype=float)
+    rows, cols = np.mgrid[0:sample.shape[0], 0:sample.shape[1]] * step
+    x, y, z = sample[..., 0], sample[..., 1], sample[..., 2]
+    with np.errstate(invalid="ignore"):
+        ok = np.isfinite(z) & (z > 0) & np.isfinite(x) & np.isfinite(y)
+    if np.count_nonzero(ok) < 10:
+        return None
+    camera = []
+    for ratio, pixel in ((x[ok] / z[ok], cols[ok]), (y[ok] / z[ok], rows[ok])):
+        slope, offset = np.polyfit(ratio, pixel, 1)
+        if np.sqrt(np.mean((slope * ratio + offset - pixel) ** 2)) > max_error:
+            return None
+        camera += [float(slope), float(offset)]
+    return tuple(camera)
 
-    on_edge: whether each of its points lies on the image's edge (on_image_edge, bool (N,)); axial,
-    from_axis: their coordinates along its axis and distances from it (m, float (N,)). An end is cut
-    when some of its points within `slab` (m) of it lie on the edge and none on the inner half of
-    its disc is seen (a lid seen gives the height, cut or not). When points near both ends and
-    between them lie on the edge, it lies along the edge: neither end is cut."""
-    axial = np.asarray(axial, dtype=float)
-    t = axial[on_edge]
-    near, far = bool(np.any(t <= slab)), bool(np.any(t >= length - slab))
-    if near and far and np.any((t > slab) & (t < length - slab)):
-        return False, False
-    inner = np.asarray(from_axis, dtype=float) < 0.5 * radius
-    near = near and not np.any(inner & (axial <= slab))
-    far = far and not np.any(inner & (axial >= length - slab))
-    return near, far
+
+def outside_image(points, camera, box, margin=1):
+    """Whether each point (float (N, 3), camera frame, m) projects (camera: pinhole's) outside box
+    (image_box) or within `margin` px of its edge, or lies behind the camera: bool (N,)."""
+    fx, cx, fy, cy = camera
+    p = np.asarray(points, dtype=float).reshape(-1, 3)
+    r0, r1, c0, c1 = box
+    with np.errstate(divide="ignore", invalid="ignore"):
+        col, row = fx * p[:, 0] / p[:, 2] + cx, fy * p[:, 1] / p[:, 2] + cy
+        inside = (p[:, 2] > 0) & (row > r0 + margin) & (row < r1 - margin) & (col > c0 + margin) & (col < c1 - margin)
+    return ~inside
 
 
 def _xy(xy):

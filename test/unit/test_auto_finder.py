@@ -273,6 +273,18 @@ def test_a_lying_can_cut_by_the_image_edge_starts_from_the_end_seen(how):
     assert can.to_dict()["end_seen"] is False
 
 
+def test_a_lying_can_the_bottom_edge_cuts_lengthwise_says_so():
+    """The image ends at row 215, along the lying can (its pixels on the edge from end to end, the
+    axis leaving the image beyond one end): end_seen False, shorter than the can; the upright can
+    whose base is below the edge stands on the table (base_seen False), its whole height seen."""
+    scene, ends, _ = _lying_can_seed_5()
+    cans = af.find_cans(np.ascontiguousarray(scene.xyz[:215])).cans
+    assert sorted(c.lying for c in cans) == [False, True]
+    lying, upright = (next(c for c in cans if c.lying is flag) for flag in (True, False))
+    assert not lying.end_seen and lying.height < np.linalg.norm(ends[1] - ends[0]) - 0.05
+    assert upright.end_seen and not upright.base_seen and abs(upright.height - 0.15) < 0.003
+
+
 def test_an_upright_can_whose_top_is_cut_by_the_image_edge_says_so():
     """The image begins at row 180, across the upright can's upper part: end_seen False, its height
     what is seen (less than its 150 mm)."""

@@ -506,31 +506,34 @@ def test_image_box_spans_the_pixels_with_depth():
     assert g.image_box(np.full((4, 4), np.nan)) is None
 
 
-def test_ends_at_image_edge_near_far_and_along_the_edge():
-    """on_image_edge and ends_at_image_edge: an end is cut when its points within the slab reach the
-    box's edge and its disc is not seen; a cylinder whose points lie on the edge all along is not cut
-    at either end."""
-    width, box, radius = 64, (0, 47, 8, 63), 0.03
-    axial, side = np.linspace(0.0, 0.1, 11), np.full(11, radius)  # eleven points on its side
+def test_on_image_edge_within_the_margin_of_the_box():
+    """on_image_edge: pixels within margin px of the box's edge, on any side."""
+    width, box = 64, (2, 45, 8, 61)
+    pixels = [20 * width + 30, 20 * width + 9, 20 * width + 60, 3 * width + 30, 44 * width + 30, 20 * width + 10]
+    assert g.on_image_edge(pixels, width, box).tolist() == [False, True, True, True, True, False]
+    assert g.on_image_edge(pixels, width, box, margin=2).tolist() == [False, True, True, True, True, True]
 
-    def cut(indices, from_axis=side, margin=1):
-        on_edge = g.on_image_edge(indices, width, box, margin)
-        return g.ends_at_image_edge(on_edge, axial, from_axis, 0.1, radius, slab=0.01)
 
-    inside = [20 * width + c for c in range(20, 31)]  # row 20, columns 20..30: away from every edge
-    assert not g.on_image_edge(inside, width, box).any() and cut(inside) == (False, False)
-    far_cut = inside[:-1] + [20 * width + 62]  # its last point one pixel from the right edge
-    assert cut(far_cut) == (False, True)
-    lid = side.copy()
-    lid[-1] = 0.01  # the far end's point on the inner half of its disc (a lid cut by the edge): seen
-    assert cut(far_cut, lid) == (False, False)
-    near_cut = [20 * width + 9] + inside[1:]  # its first point on the left edge of the box (column 8)
-    assert cut(near_cut) == (True, False)
-    assert cut(near_cut, margin=0) == (False, False)
-    along = [46 * width + c for c in range(20, 31)]  # every point on the last row but one
-    assert cut(along) == (False, False)
-    both = [20 * width + 9] + inside[1:-1] + [20 * width + 62]  # through the image, edge to edge
-    assert cut(both) == (True, True)
+def test_pinhole_is_the_generated_kinects_camera():
+    """pinhole recovers the generated Kinect's intrinsics from its cloud (and from every other pixel's,
+    in that grid's pixels); a cloud in no camera's frame (turned) has none."""
+    scene = sc.generate_scene()
+    k = sc.intrinsics()
+    assert_allclose(g.pinhole(scene.xyz), (k["fx"], k["cx"], k["fy"], k["cy"]), atol=1e-3)
+    assert_allclose(g.pinhole(scene.xyz[::2, ::2]), (k["fx"] / 2, k["cx"] / 2, k["fy"] / 2, k["cy"] / 2), atol=1e-3)
+    assert g.pinhole(np.ascontiguousarray(scene.xyz[..., [2, 0, 1]])) is None  # its axes turned
+    assert g.pinhole(np.full((8, 8, 3), np.nan)) is None
+
+
+def test_outside_image_projects_onto_the_box():
+    """outside_image: a point projecting inside the box (less the margin) is in; beyond it, on the
+    margin or behind the camera, out."""
+    camera, box = (525.0, 319.5, 525.0, 239.5), (0, 479, 8, 639)
+    # columns 319.5, 687, 4.5 (left of the box's column 8), row 478.4 (on the margin), behind
+    points = [[0.0, 0.0, 1.0], [0.7, 0.0, 1.0], [-0.6, 0.0, 1.0], [0.0, 0.455, 1.0], [0.0, 0.0, -1.0]]
+    assert g.outside_image(points, camera, box).tolist() == [False, True, True, True, True]
+    assert g.outside_image([[-0.58, 0.0, 1.0]], camera, box, margin=0).tolist() == [False]  # column 15
+    assert g.outside_image([[-0.58, 0.0, 1.0]], camera, box, margin=8).tolist() == [True]
 
 
 def test_footprint_center_is_the_base_or_a_lying_axis_middle():
