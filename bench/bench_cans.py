@@ -93,7 +93,8 @@ def score(tally, found_cans, true_cans, true_lying, to_plane, match):
             # edge cuts (end_seen False), when its origin, the end seen, is within `match` of the
             # truth's nearer end (both ends cut: its middle within `match` of the truth's axis).
             axis = transforms.apply(to_plane, can.base_center + can.axis) - base
-            hits = [(_lying_error(can, base, axis, t, to_plane), k) for k, t in enumerate(true_lying)
+            mid = transforms.apply(to_plane, can.base_center + 0.5 * can.height * can.axis)
+            hits = [(_lying_error(can, base, mid, t), k) for k, t in enumerate(true_lying)
                     if k not in used_lying and abs(axis @ t["axis"]) >= np.cos(LYING_ANGLE)]
             error, k = min(hits) if hits else (np.inf, -1)
             if error >= match:
@@ -133,10 +134,9 @@ def score(tally, found_cans, true_cans, true_lying, to_plane, match):
     tally.hidden_total += sum(t.get("hidden", False) for t in true_cans + true_lying)
 
 
-def _lying_error(can, start, axis, truth, to_plane):
-    """Horizontal error (m) of a lying can found (start: its origin, axis: unit, plane frame) against a
-    true lying can (score's dict), as score matches them."""
-    mid = transforms.apply(to_plane, can.base_center + 0.5 * can.height * can.axis)
+def _lying_error(can, start, mid, truth):
+    """Horizontal error (m) of a lying can found (start: its origin, mid: its axis' middle, plane
+    frame) against a true lying can (score's dict), as score matches them."""
     if can.end_seen:
         return float(np.linalg.norm(mid[:2] - truth["center"][:2]))
     if can.base_seen:
