@@ -360,11 +360,8 @@ def _search_cylinders(pts, T, viewpoint, config):
     points = [_native.extract(in_plane, idx).astype(float) for idx in clusters]
     found, rejections = can_search.search(points, standing, T, sensor_plane, config,
                                           ray_angle=g.ray_angle(grid, viewpoint))
-    cans = [dataclasses.replace(can, indices=clusters[k][can.indices]) for k, can in found]
-    if grid.ndim == 3:
-        cans = cut_by_image_edge(cans, grid, 2 * config.r_eps)
-    cans = [dataclasses.replace(can, indices=_grid_indices(can.indices, in_plane.shape[:-1], pts.shape[:-1], step))
-            for can in cans]
+    cans = [dataclasses.replace(can, indices=_grid_indices(clusters[k][can.indices], in_plane.shape[:-1],
+                                                            pts.shape[:-1], step)) for k, can in found]
     rejected = [RejectedCluster(centroid=transforms.apply(T, rj.centroid), n_points=rj.n_points, reason=rj.reason,
                                 radius=rj.radius) for _, rj in rejections]
     cans.sort(key=lambda c: -c.n_fit_points)
@@ -372,7 +369,7 @@ def _search_cylinders(pts, T, viewpoint, config):
     return cans, rejected, {"transform": t1 - t0, "clusters": t2 - t1, "fits": t3 - t2}
 
 
-def cut_by_image_edge(cans, xyz, reach, margin=1):
+def _cut_by_image_edge(cans, xyz, reach, margin=1):
     """The cans (Can, indices: flattened pixels of xyz, float32 (H, W, 3) camera frame, m) with what
     the image's edge cuts: an end is cut when some of the can's pixels lie within margin px of the
     edge (geometry.image_box) and its axis, `reach` m beyond that end, leaves the image (the can may
@@ -403,6 +400,15 @@ def cut_by_image_edge(cans, xyz, reach, margin=1):
     return out
 
 
+def mark_image_edge(cans, xyz, config=AutoConfig()):
+    """The cans (indices: flattened pixels of xyz, sensor frame, m) marked where the image's edge cuts
+    them, as find_cans marks them (_cut_by_image_edge: 2 r_eps of config beyond the ends, within the
+    searched grid's step of the edge); an unorganized (N, 3) cloud has no edge: the cans as they are."""
+    if np.ndim(xyz) != 3:
+        return cans
+    return _cut_by_image_edge(cans, xyz, 2 * config.r_eps, margin=int(config.cylinders.grid_step))
+
+
 def find_cans(xyz, viewpoint=(0.0, 0.0, 0.0), config=AutoConfig()):
     """Every can on the support plane of a cloud (upright, stacked or lying), with no selection: an AutoResult.
 
@@ -418,6 +424,7 @@ def find_cans(xyz, viewpoint=(0.0, 0.0, 0.0), config=AutoConfig()):
     t1 = time.perf_counter()
     if config.search == "cylinders":
         cans, rejected, stages = _search_cylinders(pts, T, viewpoint, config)
+        cans = mark_image_edge(cans, pts, config)
         t4 = time.perf_counter()
         timings = {"table": t1 - t0, **stages, "total": t4 - t0}
         return AutoResult(table=plane, T_sensor_from_plane=T, cans=cans, rejected=rejected,
@@ -439,7 +446,7 @@ def find_cans(xyz, viewpoint=(0.0, 0.0, 0.0), config=AutoConfig()):
         cans.append(Can(T_sensor_from_can=g.can_pose(T, fit.cx, fit.cy), radius=fit.radius, height=height,
                         rms_error=fit.rms_error, arc_coverage=fit.arc_coverage, n_points=len(idx),
                         n_fit_points=fit.n_inliers, center_plane=fit.center, shape_error=shape, indices=idx))
-    cans.sort(key=lambda c: -c.n_fit_points)
+    cans = mark_image_edge(sorted(cans, key=lambda c: -c.n_fit_points), pts, config)
     t4 = time.perf_counter()
     timings = {"table": t1 - t0, "transform": t2 - t1, "clusters": t3 - t2, "fits": t4 - t3, "total": t4 - t0}
     return AutoResult(table=plane, T_sensor_from_plane=T, cans=cans, rejected=rejected,

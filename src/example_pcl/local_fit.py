@@ -550,9 +550,7 @@ class LocalFinder:
                 if not defer:
                     timings["cans"] = time.perf_counter() - t
                     return lost, False
-        # Within as many pixels of the image's edge as the search's one pixel of its grid.
-        cans = af.cut_by_image_edge([refitted[k] for k in sorted(refitted)], pts, 2 * c.auto.r_eps,
-                                    margin=int(c.auto.cylinders.grid_step))
+        cans = af.mark_image_edge([refitted[k] for k in sorted(refitted)], pts, c.auto)
         timings["cans"] = time.perf_counter() - t
         t = time.perf_counter()
         standing, grid = standing_grid(pts, T, c, self.viewpoint)
