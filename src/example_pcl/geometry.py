@@ -791,11 +791,12 @@ class RimCircle:
         residual = np.hypot(self.outline[:, 0] - cx, self.outline[:, 1] - cy) - (r - 0.5 * self.spacing)
         return RimCircle(float(cx), float(cy), float(r), self.outline, residual, self.spacing, self.r_eps)
 
-    def fits(self, sigma, min_arc):
+    def fits(self, sigma, min_arc, pinned=False):
         """Whether it is the rim of a can's lid: its rms within max(2 mm, 2 sigma) (sigma: the depth
-        noise, m; the outline's samples lie up to a sample spacing inside the rim) and seen over at
+        noise, m; the outline's samples lie up to a sample spacing inside the rim), or within a
+        sample spacing when pinned (a stripe of side fixes its circle, with_side), and seen over at
         least min_arc (rad) within r_eps."""
-        return self.rms <= max(0.002, 2 * sigma) and self.arc() >= min_arc
+        return self.rms <= max(0.002, 2 * sigma, self.spacing if pinned else 0.0) and self.arc() >= min_arc
 
 
 def rim_outline(disc_xy, sensor, sectors=36):
