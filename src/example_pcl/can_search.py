@@ -1248,7 +1248,7 @@ def _lid_at(free, band, level, sigma, r_eps, ctx):
     # prisms", development seeds 413, 417: 70 % of the points near the circle lower).
     hidden_below = z_lid - c.min_can_height
     n_low = np.count_nonzero(z[side] < hidden_below)
-    if n_low > max(s.min_band_points, 0.5 * np.count_nonzero(side)):
+    if n_low > max(s.min_band_points, 0.5 * np.count_nonzero(side)) and np.count_nonzero(side) >= c.min_fit_points:
         can = verify(free, cx, cy, r, ctx, rim=True)[0]
         if can is not None:
             return can
