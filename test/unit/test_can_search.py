@@ -828,6 +828,39 @@ def test_an_upside_down_bowls_foot_is_no_can_with_any_search_seed():
             assert result.cans == [], (view, seed, result.message)
 
 
+def test_points_beyond_the_circle_are_no_far_inner_wall():
+    """_open_top: points on the circle's far half 20-40 mm under its top, 3 mm inside the circle (r 40
+    mm), are a hollow cylinder's far inner wall; 4 mm outside it they are not (another object's side,
+    beyond a circle a can touching it pulled wide: fresh held-out 3206 of "cluttered table")."""
+    r, top = 0.04, 0.10
+    near_angle = np.radians(np.linspace(-150, -30, 8))
+    z = np.linspace(0.055, 0.095, 5)
+    near = np.array([[r * np.cos(a), r * np.sin(a), h] for a in near_angle for h in z])
+    far_angle = np.radians(np.linspace(60, 120, 10))
+    for dr, hollow in ((-0.003, True), (0.004, False)):
+        far = np.array([[(r + dr) * np.cos(a), (r + dr) * np.sin(a), 0.07] for a in far_angle])
+        points = np.vstack([near, far])
+        ctx = cs._Context(config=af.AutoConfig(), search=cs.CylinderSearchConfig(), T_sensor_from_plane=np.eye(4),
+                          sensor=np.array([0.0, -0.8, 0.6]), standing=points, rng=np.random.default_rng(0),
+                          found=[])
+        why = cs._open_top(points, 0.0, 0.0, r, 0.006, 0.0, top, ctx)
+        assert why.startswith("open top") if hollow else why == "", (dr, why)
+
+
+def test_a_can_whose_circle_a_touching_can_pulls_wide_is_no_cup():
+    """Fresh held-out 3206 of "cluttered table": a can's circle pulled wide by the can touching it (40
+    mm for 36) saw that can's side beyond it on its far half, and the can was claimed as a cup: every
+    can is found, that one within 8 mm (its circle still pulled), no other upright can."""
+    scene = sc.generate_scene(so.case_spec("cluttered table", 3206))
+    to_table = transforms.invert(np.asarray(scene.truth["camera_from_table"]))
+    upright = [c for c in af.find_cans(scene.xyz).cans if not c.lying]
+    truth = [t for t in scene.truth["objects"] if t["is_can"]]
+    assert len(upright) == len(truth) == 3
+    for t in truth:
+        base = transforms.apply(to_table, t["base_center"])
+        assert min(np.hypot(*(table_xy(to_table, c)[:2] - base[:2])) for c in upright) < 0.008
+
+
 def test_a_lid_over_a_round_object_claimed_below_it_is_its_top():
     """_top_of_claimed: a lid inside the disc of a round object claimed as no can (r 81 mm, up to 60 mm)
     and less than min_can_height above it is that object's top; beside it, or as high above it as a
