@@ -1234,8 +1234,14 @@ def _lid_at(free, band, level, sigma, r_eps, ctx):
     if len(lid) < c.min_fit_points or np.any(np.ptp(lid[:, :2], axis=0) > 2 * (c.max_radius + r_eps)):
         return None
     rim = g.rim_circle(lid, ctx.sensor[:2], r_eps)
-    if rim is None or len(rim.outline) < c.shape_bins or not _lid_rim(rim, lid, sigma, r_eps, ctx):
+    if rim is None or len(rim.outline) < c.shape_bins:
         return None
+    if not _lid_rim(rim, lid, sigma, r_eps, ctx):
+        # A lid the can in front cuts short shows its rim over less than lid_arc: pinned by the stripe
+        # of side under it ("cans touching" 2408, development 73 of "cluttered table").
+        rim = _rim_pinned_by_side(rim, pts, z_lid, lid, sigma, r_eps, ctx)
+        if rim is None:
+            return None
     cx, cy, r, far = rim.cx, rim.cy, rim.radius, rim.outline
     if _top_of_claimed(cx, cy, r, z_lid, r_eps, ctx):
         return None
@@ -1274,6 +1280,22 @@ def _lid_at(free, band, level, sigma, r_eps, ctx):
                center_plane=np.array([cx, cy]),
                shape_error=g.shape_error(far, cx, cy, rim.outline_radius, c.shape_bins),
                indices=mine, support="table", base_seen=False, support_height=0.0)
+
+
+def _rim_pinned_by_side(rim, pts, z_lid, lid, sigma, r_eps, ctx):
+    """A lid's rim (geometry.RimCircle) refitted with the stripe of side under it and judged with it
+    (_rim_with_side, the side counting toward its arc), or None: the side's points among pts (float
+    (N, 3), plane frame, m) within 2 r_eps of the rim's circle on its half facing the sensor, more than
+    a band under the lid at z_lid (m), at least shape_bins of them, over less than min_arc (a side
+    seen wider is the rounds' to fit and judge: a low box's faces pinned its top's rim, development 83
+    of "cluttered table")."""
+    c, s = ctx.config, ctx.search
+    dist = np.hypot(pts[:, 0] - rim.cx, pts[:, 1] - rim.cy)
+    under = ((np.abs(dist - rim.radius) <= 2 * r_eps) & (pts[:, 2] < z_lid - s.band_height)
+             & _facing(pts[:, 0], pts[:, 1], rim.cx, rim.cy, rim.radius, ctx))
+    if np.count_nonzero(under) < c.shape_bins or g.arc_coverage(pts[under, :2], rim.cx, rim.cy) >= c.min_arc:
+        return None
+    return _rim_with_side(rim, pts[under, :2], lid, sigma, r_eps, ctx, side_counts=True)
 
 
 def _lid_rim(rim, lid, sigma, r_eps, ctx, beside=None):
