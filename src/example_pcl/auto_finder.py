@@ -378,13 +378,15 @@ def _cut_by_image_edge(cans, xyz, reach, margin=1):
     seen; cut at both, base_seen False."""
     if not cans:
         return cans
-    box, camera = g.image_box(xyz[..., 2]), None
+    # The camera is fitted once, and only when a can touches the edge (None: the cloud has no pinhole).
+    box, camera, fitted = g.image_box(xyz[..., 2]), None, False
     out = []
     for can in cans:
         near = far = False
         # A can the edge cuts shows pixels on it: most cans are nowhere near it.
         if g.on_image_edge(can.indices, xyz.shape[1], box, margin).any():
-            camera = camera or g.pinhole(xyz)
+            if not fitted:
+                camera, fitted = g.pinhole(xyz), True
             if camera is not None:
                 beyond = can.base_center + np.outer([-reach, can.height + reach], can.axis)
                 near, far = (bool(v) for v in g.outside_image(beyond, camera, box, margin))
