@@ -20,6 +20,7 @@ import numpy as np
 from example_pcl import _native
 from example_pcl import can_search
 from example_pcl import geometry as g
+from example_pcl import lying
 from example_pcl import transforms
 from example_pcl.can import Can
 from example_pcl.errors import PerceptionError, require_positive
@@ -355,11 +356,14 @@ def _search_cylinders(pts, T, viewpoint, config):
     # The grid has 1 / step^2 of the points: so has a cluster.
     grid_config = dataclasses.replace(config, min_cluster_points=max(int(config.min_cluster_points / step ** 2), 3))
     clusters = _clusters(in_plane, grid_config)
-    standing = _native.extract(in_plane, g.points_above_plane(in_plane, config.min_height, config.max_height))
+    standing_idx = g.points_above_plane(in_plane, config.min_height, config.max_height)
+    standing = _native.extract(in_plane, standing_idx)
     t2 = time.perf_counter()
     points = [_native.extract(in_plane, idx).astype(float) for idx in clusters]
     found, rejections = can_search.search(points, standing, T, sensor_plane, config,
                                           ray_angle=g.ray_angle(grid, viewpoint))
+    found = [(k, _with_hidden_ends(can, in_plane, standing_idx, clusters[k], T_plane_from_sensor, sensor_plane,
+                                   config) if can.lying else can) for k, can in found]
     cans = [dataclasses.replace(can, indices=_grid_indices(clusters[k][can.indices], in_plane.shape[:-1],
                                                             pts.shape[:-1], step)) for k, can in found]
     rejected = [RejectedCluster(centroid=transforms.apply(T, rj.centroid), n_points=rj.n_points, reason=rj.reason,
@@ -369,22 +373,41 @@ def _search_cylinders(pts, T, viewpoint, config):
     return cans, rejected, {"transform": t1 - t0, "clusters": t2 - t1, "fits": t3 - t2}
 
 
+def _with_hidden_ends(can, in_plane, standing, cluster, T_plane_from_sensor, sensor_plane, config):
+    """A lying Can with its ends_hidden: which of its ends an object in front hides (lying.hidden_ends),
+    among the points standing on the table (standing: flat indices into in_plane, the searched grid in
+    the plane frame, m) but its cluster's (cluster: flat indices): an object touching the can's end
+    is in its cluster and bounds it there ("lying can touching box"); one standing apart in front of
+    the end hides it ("cluttered table" 3531, 3542)."""
+    apart = np.zeros(int(np.prod(in_plane.shape[:-1])), bool)
+    apart[standing] = True
+    apart[cluster] = False
+    occluders = in_plane.reshape(-1, 3)[apart].astype(float)
+    start = transforms.apply(T_plane_from_sensor, can.base_center)
+    u = T_plane_from_sensor[:3, :3] @ can.axis
+    offset = start + 0.5 * can.height * u - sensor_plane
+    r_eps = max(config.r_eps, config.r_eps_sigmas * config.noise_coefficient * float(offset @ offset))
+    hidden = lying.hidden_ends(start, u, can.height, can.radius, r_eps, sensor_plane, occluders)
+    return dataclasses.replace(can, ends_hidden=hidden)
+
+
 def _cut_by_image_edge(cans, xyz, reach, margin=1):
-    """The cans (Can, indices: flattened pixels of xyz, float32 (H, W, 3) camera frame, m) with what
-    the image's edge cuts: an end is cut when some of the can's pixels lie within margin px of the
-    edge (geometry.image_box) and its axis, `reach` m beyond that end, leaves the image (the can may
-    go on there unseen). end_seen False when it cuts the far end (the top; a lying can's other end).
-    A lying can cut at its origin's end only is turned end for end, so that its origin is the end
-    seen; cut at both, base_seen False."""
+    """The cans (Can, indices: flattened pixels of xyz, float32 (H, W, 3) camera frame, m, or None:
+    no image) with what the image's edge or an object in front cuts: an end is cut when some of the
+    can's pixels lie within margin px of the edge (geometry.image_box) and its axis, `reach` m beyond
+    that end, leaves the image (the can may go on there unseen), or, a lying can's, when its
+    ends_hidden says an object in front hides it. end_seen False when it cuts the far end (the top;
+    a lying can's other end). A lying can cut at its origin's end only is turned end for end, so
+    that its origin is the end seen; cut at both, base_seen False."""
     if not cans:
         return cans
     # The camera is fitted once, and only when a can touches the edge (None: the cloud has no pinhole).
-    box, camera, fitted = g.image_box(xyz[..., 2]), None, False
+    box, camera, fitted = (None, None, True) if xyz is None else (g.image_box(xyz[..., 2]), None, False)
     out = []
     for can in cans:
         near = far = False
         # A can the edge cuts shows pixels on it: most cans are nowhere near it.
-        if g.on_image_edge(can.indices, xyz.shape[1], box, margin).any():
+        if box is not None and g.on_image_edge(can.indices, xyz.shape[1], box, margin).any():
             if not fitted:
                 camera, fitted = g.pinhole(xyz), True
             if camera is not None:
@@ -392,9 +415,10 @@ def _cut_by_image_edge(cans, xyz, reach, margin=1):
                 near, far = (bool(v) for v in g.outside_image(beyond, camera, box, margin))
                 near = near and can.lying  # an upright can's base is on its support, not beyond it
         if can.lying:
+            near, far = near or can.ends_hidden[0], far or can.ends_hidden[1]
             if near and not far:
                 turned = g.turned_end_for_end(can.T_sensor_from_can, can.height)
-                can = dataclasses.replace(can, T_sensor_from_can=turned)
+                can = dataclasses.replace(can, T_sensor_from_can=turned, ends_hidden=can.ends_hidden[::-1])
                 near, far = False, True
             out.append(dataclasses.replace(can, end_seen=not far, base_seen=not near))
         else:
@@ -402,13 +426,13 @@ def _cut_by_image_edge(cans, xyz, reach, margin=1):
     return out
 
 
-def mark_image_edge(cans, xyz, config=AutoConfig()):
-    """The cans (indices: flattened pixels of xyz, sensor frame, m) marked where the image's edge cuts
-    them, as find_cans marks them (_cut_by_image_edge: 2 r_eps of config beyond the ends, within the
-    searched grid's step of the edge); an unorganized (N, 3) cloud has no edge: the cans as they are."""
-    if np.ndim(xyz) != 3:
-        return cans
-    return _cut_by_image_edge(cans, xyz, 2 * config.r_eps, margin=int(config.cylinders.grid_step))
+def mark_unseen_ends(cans, xyz, config=AutoConfig()):
+    """The cans (indices: flattened pixels of xyz, sensor frame, m) marked where an end may go on
+    unseen, as find_cans marks them (_cut_by_image_edge): beyond the image's edge (2 r_eps of config
+    beyond the ends, within the searched grid's step of the edge; an unorganized (N, 3) cloud has no
+    edge) or, a lying can's, behind an object in front (its ends_hidden, from the search)."""
+    return _cut_by_image_edge(cans, xyz if np.ndim(xyz) == 3 else None, 2 * config.r_eps,
+                              margin=int(config.cylinders.grid_step))
 
 
 def find_cans(xyz, viewpoint=(0.0, 0.0, 0.0), config=AutoConfig()):
@@ -426,7 +450,7 @@ def find_cans(xyz, viewpoint=(0.0, 0.0, 0.0), config=AutoConfig()):
     t1 = time.perf_counter()
     if config.search == "cylinders":
         cans, rejected, stages = _search_cylinders(pts, T, viewpoint, config)
-        cans = mark_image_edge(cans, pts, config)
+        cans = mark_unseen_ends(cans, pts, config)
         t4 = time.perf_counter()
         timings = {"table": t1 - t0, **stages, "total": t4 - t0}
         return AutoResult(table=plane, T_sensor_from_plane=T, cans=cans, rejected=rejected,
@@ -448,7 +472,7 @@ def find_cans(xyz, viewpoint=(0.0, 0.0, 0.0), config=AutoConfig()):
         cans.append(Can(T_sensor_from_can=g.can_pose(T, fit.cx, fit.cy), radius=fit.radius, height=height,
                         rms_error=fit.rms_error, arc_coverage=fit.arc_coverage, n_points=len(idx),
                         n_fit_points=fit.n_inliers, center_plane=fit.center, shape_error=shape, indices=idx))
-    cans = mark_image_edge(sorted(cans, key=lambda c: -c.n_fit_points), pts, config)
+    cans = mark_unseen_ends(sorted(cans, key=lambda c: -c.n_fit_points), pts, config)
     t4 = time.perf_counter()
     timings = {"table": t1 - t0, "transform": t2 - t1, "clusters": t3 - t2, "fits": t4 - t3, "total": t4 - t0}
     return AutoResult(table=plane, T_sensor_from_plane=T, cans=cans, rejected=rejected,

@@ -4,7 +4,7 @@ Both the operator's modes 2-3 (example_pcl.can_finder) and the automatic search
 (example_pcl.auto_finder, mode 4) return it. Pure NumPy; knows nothing of ROS.
 """
 from dataclasses import dataclass, field
-from typing import Optional
+from typing import Optional, Tuple
 
 import numpy as np
 
@@ -33,7 +33,10 @@ class Can:
     the can lies on its side (its axis, z of T_sensor_from_can, parallel to the table; origin the
     centre of one end, height its length); end_seen: False when the image's edge cuts its far end
     (the top, or a lying can's other end; height is then the length seen; a lying can's origin is
-    the end seen, and base_seen False when the edge cuts both). Unorganized clouds: True.
+    the end seen, and base_seen False when the edge cuts both), or an object in front hides a lying
+    can's other end. Unorganized clouds: True unless hidden. ends_hidden: which of a lying can's ends
+    (its origin's, the other) an object standing apart in front hides (mode 4's search; a tracker's
+    refit keeps its detection's).
     """
 
     T_sensor_from_can: np.ndarray
@@ -53,6 +56,7 @@ class Can:
     support_height: float = 0.0
     lying: bool = False
     end_seen: bool = True
+    ends_hidden: Tuple[bool, bool] = (False, False)
 
     @property
     def base_center(self):
@@ -77,4 +81,5 @@ class Can:
                 "center_plane": np.asarray(self.center_plane).tolist(), "iterations": self.iterations,
                 "converged": self.converged, "support": self.support, "base_seen": self.base_seen,
                 "support_height": self.support_height, "lying": self.lying, "end_seen": self.end_seen,
+                "ends_hidden": list(self.ends_hidden),
                 "T_sensor_from_can": self.T_sensor_from_can.tolist()}

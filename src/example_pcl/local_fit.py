@@ -550,7 +550,7 @@ class LocalFinder:
                 if not defer:
                     timings["cans"] = time.perf_counter() - t
                     return lost, False
-        cans = af.mark_image_edge([refitted[k] for k in sorted(refitted)], pts, c.auto)
+        cans = af.mark_unseen_ends([refitted[k] for k in sorted(refitted)], pts, c.auto)
         timings["cans"] = time.perf_counter() - t
         t = time.perf_counter()
         standing, grid = standing_grid(pts, T, c, self.viewpoint)

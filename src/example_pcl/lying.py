@@ -658,6 +658,32 @@ def judge_lying(points, fit, r_eps, sigma, config, search, sensor=None, occluder
                     inliers=side, mine=body, shape_error=shape, arc=arc, rims=rims), ""
 
 
+def hidden_ends(start, direction, length, radius, r_eps, sensor, occluders, reach=(0.01, 0.02)):
+    """Which ends of a lying can an object in front hides: (origin's end, other end), bools.
+
+    start: the centre of one end (3,), direction: unit, horizontal (3,), length, radius, r_eps (m);
+    sensor (3,) and occluders (float (N, 3)), every point standing on the table; all in the plane
+    frame. An end is hidden when the places of the side's half facing the sensor `reach` (m) beyond
+    it all lie behind occluders other than the can's own points (geometry.behind): the can may go on
+    there unseen ("cluttered table" 3531, 3542: a tall box in front of one end)."""
+    start, u, sensor = (np.asarray(v, dtype=float) for v in (start, direction, sensor))
+    occluders = np.asarray(occluders, dtype=float).reshape(-1, 3)
+    n = np.array([-u[1], u[0], 0.0])
+    rel = occluders - start
+    axial = rel @ u
+    own = ((np.hypot(rel @ n, rel[:, 2]) <= radius + r_eps) & (axial >= -r_eps) & (axial <= length + r_eps))
+    others = occluders[~own]
+    hidden = []
+    for ends in ([-d for d in reach], [length + d for d in reach]):
+        middle = start + float(np.mean(ends)) * u
+        toward = np.arctan2(sensor[2] - middle[2], (sensor - middle) @ n)
+        theta = g.near_half_angles(toward)
+        ring = radius * (np.cos(theta)[:, None] * n + np.sin(theta)[:, None] * np.array([0.0, 0.0, 1.0]))
+        places = np.vstack([start + a * u + ring for a in ends])
+        hidden.append(bool(g.behind(places, others, sensor).all()))
+    return hidden[0], hidden[1]
+
+
 def _rest_hidden(fit, side_lateral, side_z, a_lo, a_hi, r_eps, sensor, occluders):
     """Whether every part of the near half of a lying can's side (fit, its ends at the axial
     coordinates a_lo..a_hi, m) that shows none of its side points (lateral and z coordinates) lies
