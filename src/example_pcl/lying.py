@@ -271,7 +271,9 @@ def _explained(q, z, fit, r_eps, sensor, band, fraction, min_points, max_gap, oc
     A band where at least as many points (and min_points) lie inside the cylinder or just outside it
     (within 3 r_eps, on its half facing the sensor) as on it ends the run: another object's surface
     is seen there (a box at its end, wider or lower than it, or as wide, its face then meeting the
-    circle along one stripe and going on beyond it). With occluders ((M, 3), m, plane frame; q is
+    circle along one stripe and going on beyond it); so does one where as many lie inside as on it in
+    its crown (the upper side within half a radius of the axis, seen from above: a lower box's top at
+    its end, as wide as the can, meets its circle on both flanks). With occluders ((M, 3), m, plane frame; q is
     measured from `origin`, (x, y)), the run goes on over the bands beyond it whose facing half is
     seen where it is not hidden behind them (_through_hidden). The run then loses the bands at one
     end where no can's side is seen (_without_flat_end: a box's top as high as the can)."""
@@ -288,8 +290,14 @@ def _explained(q, z, fit, r_eps, sensor, band, fraction, min_points, max_gap, oc
     band_inside = np.bincount(bands[rho < r - r_eps], minlength=nb)
     band_out = np.bincount(bands[facing & (rho > r + r_eps) & (rho <= r + 3 * r_eps)], minlength=nb)
     other = band_inside + band_out
+    # The crown (the upper side within half a radius of the axis, seen from above): a lower object's
+    # top beyond the can's end lies inside the circle there, a can's side on it.
+    crown = (np.abs(dl) <= 0.5 * r) & (dz > 0)
+    crown_on = np.bincount(bands[on & crown], minlength=nb)
+    crown_inside = np.bincount(bands[crown & (rho < r - r_eps)], minlength=nb)
     run = g.band_run(band_on, band_inside, fraction, min_points, max_gap,
-                     blocked=other >= np.maximum(min_points, band_on))
+                     blocked=(other >= np.maximum(min_points, band_on))
+                     | (crown_inside >= np.maximum(min_points, crown_on)))
     if run is None:
         return None
     if occluders is not None and sensor is not None:
