@@ -273,8 +273,8 @@ def _explained(q, z, fit, r_eps, sensor, band, fraction, min_points, max_gap, oc
     is seen there (a box at its end, wider or lower than it, or as wide, its face then meeting the
     circle along one stripe and going on beyond it); so does one where as many lie inside as on it in
     its crown (the upper side within half a radius of the axis, seen from above: a lower box's top at
-    its end, as wide as the can, meets its circle on both flanks). With occluders ((M, 3), m, plane frame; q is
-    measured from `origin`, (x, y)), the run goes on over the bands beyond it whose facing half is
+    its end, as wide as the can, meets its circle on both flanks). With occluders ((M, 3), m, plane
+    frame; q is measured from `origin`, (x, y)), the run goes on over the bands beyond it whose facing half is
     seen where it is not hidden behind them (_through_hidden). The run then loses the bands at one
     end where no can's side is seen (_without_flat_end: a box's top as high as the can)."""
     t, d, zc, r = fit[:4]
@@ -682,12 +682,12 @@ def hidden_ends(start, direction, length, radius, r_eps, sensor, occluders, reac
     own = ((np.hypot(rel @ n, rel[:, 2]) <= radius + r_eps) & (axial >= -r_eps) & (axial <= length + r_eps))
     others = occluders[~own]
     hidden = []
-    for ends in ([-d for d in reach], [length + d for d in reach]):
-        middle = start + float(np.mean(ends)) * u
+    for beyond in ([-d for d in reach], [length + d for d in reach]):  # axial coordinates (m)
+        middle = start + float(np.mean(beyond)) * u
         toward = np.arctan2(sensor[2] - middle[2], (sensor - middle) @ n)
         theta = g.near_half_angles(toward)
         ring = radius * (np.cos(theta)[:, None] * n + np.sin(theta)[:, None] * np.array([0.0, 0.0, 1.0]))
-        places = np.vstack([start + a * u + ring for a in ends])
+        places = np.vstack([start + a * u + ring for a in beyond])
         hidden.append(bool(g.behind(places, others, sensor).all()))
     return hidden[0], hidden[1]
 
