@@ -402,7 +402,7 @@ def _cut_by_image_edge(cans, xyz, reach, margin=1):
     if not cans:
         return cans
     # The camera is fitted once, and only when a can touches the edge (None: the cloud has no pinhole).
-    box, camera, fitted = (None, None, True) if xyz is None else (g.image_box(xyz[..., 2]), None, False)
+    box, camera, fitted = None if xyz is None else g.image_box(xyz[..., 2]), None, False
     out = []
     for can in cans:
         near = far = False

@@ -669,27 +669,29 @@ def judge_lying(points, fit, r_eps, sigma, config, search, sensor=None, occluder
 def hidden_ends(start, direction, length, radius, r_eps, sensor, occluders, reach=(0.01, 0.02)):
     """Which ends of a lying can an object in front hides: (origin's end, other end), bools.
 
-    start: the centre of one end (3,), direction: unit, horizontal (3,), length, radius, r_eps (m);
+    start: the centre of one end (3,), direction: horizontal (3,) or (2,), length, radius, r_eps (m);
     sensor (3,) and occluders (float (N, 3)), every point standing on the table; all in the plane
     frame. An end is hidden when the places of the side's half facing the sensor `reach` (m) beyond
-    it all lie behind occluders other than the can's own points (geometry.behind): the can may go on
-    there unseen ("cluttered table" 3531, 3542: a tall box in front of one end)."""
-    start, u, sensor = (np.asarray(v, dtype=float) for v in (start, direction, sensor))
-    occluders = np.asarray(occluders, dtype=float).reshape(-1, 3)
-    n = np.array([-u[1], u[0], 0.0])
-    rel = occluders - start
-    axial = rel @ u
-    own = ((np.hypot(rel @ n, rel[:, 2]) <= radius + r_eps) & (axial >= -r_eps) & (axial <= length + r_eps))
-    others = occluders[~own]
-    hidden = []
-    for beyond in ([-d for d in reach], [length + d for d in reach]):  # axial coordinates (m)
-        middle = start + float(np.mean(beyond)) * u
-        toward = np.arctan2(sensor[2] - middle[2], (sensor - middle) @ n)
-        theta = g.near_half_angles(toward)
-        ring = radius * (np.cos(theta)[:, None] * n + np.sin(theta)[:, None] * np.array([0.0, 0.0, 1.0]))
-        places = np.vstack([start + a * u + ring for a in beyond])
-        hidden.append(bool(g.behind(places, others, sensor).all()))
-    return hidden[0], hidden[1]
+    it all lie behind occluders other than the can's own points (_hidden_where_unseen, nothing of it
+    seen there): the can may go on there unseen ("cluttered table" 3531, 3542: a tall box in front
+    of one end)."""
+    u = np.asarray(direction, dtype=float)[:2]
+    fit = LyingFit(direction=u / np.linalg.norm(u), origin=np.asarray(start, dtype=float)[:2], offset=0.0,
+                   zc=float(start[2]), radius=float(radius), rms=0.0, n_inliers=0)
+    others = _others(fit, np.asarray(occluders, dtype=float).reshape(-1, 3), 0.0, length, r_eps)
+    axis, seen_from = (fit.theta, 0.0, fit.zc, fit.radius), _from_origin(sensor, fit.origin)
+    origin_end, other_end = ([-d for d in reach], [length + d for d in reach])  # axial coordinates (m)
+    return (_hidden_where_unseen(axis, origin_end, [], seen_from, others),
+            _hidden_where_unseen(axis, other_end, [], seen_from, others))
+
+
+def _others(fit, occluders, a_lo, a_hi, r_eps):
+    """The occluders (float (N, 3), plane frame, m) but the lying can's own points (within r_eps of
+    its cylinder fit or inside it, between its ends at the axial coordinates a_lo..a_hi, m), in the
+    fit's coordinates (_from_origin)."""
+    axial, _, _, rho = fit.coordinates(occluders)
+    own = (rho <= fit.radius + r_eps) & (axial >= a_lo - r_eps) & (axial <= a_hi + r_eps)
+    return _from_origin(occluders[~own], fit.origin)
 
 
 def _rest_hidden(fit, side_lateral, side_z, a_lo, a_hi, r_eps, sensor, occluders):
@@ -698,12 +700,9 @@ def _rest_hidden(fit, side_lateral, side_z, a_lo, a_hi, r_eps, sensor, occluders
     behind one of the occluders (float (N, 3), plane frame, m) seen from the sensor ((x, y, z), plane
     frame), next to both ends: a lying can behind another, touching it, is seen only above the front
     one (as can_search's upright _rest_hidden)."""
-    axial, _, _, rho = fit.coordinates(occluders)
-    own = (rho <= fit.radius + r_eps) & (axial >= a_lo - r_eps) & (axial <= a_hi + r_eps)
-    others = _from_origin(occluders[~own], fit.origin)
     return _hidden_where_unseen((fit.theta, fit.offset, fit.zc, fit.radius), (a_lo + r_eps, a_hi - r_eps),
                                 np.arctan2(side_z - fit.zc, side_lateral - fit.offset),
-                                _from_origin(sensor, fit.origin), others)
+                                _from_origin(sensor, fit.origin), _others(fit, occluders, a_lo, a_hi, r_eps))
 
 
 def _bulging(axial, rho, a_lo, length, sigma, s):
