@@ -462,7 +462,10 @@ def verify(free, cx, cy, r, ctx, z0=None, again=True, rim=False):
         offset = (np.bincount(bands[near_circle], weights=residual[near_circle], minlength=nb)
                   / np.bincount(bands[near_circle], minlength=nb))
     band_on = np.where(np.abs(offset) <= 0.5 * r_eps, band_on, 0)
-    run = band_run(band_on, band_inside, s.band_fraction, s.min_band_points, s.max_band_gap)
+    # A band whose disc holds more points than its circle is a lid (or the inside of something): the
+    # side does not go on past it (a taller box touching the can showed on the circle above its lid).
+    lid_like = band_inside > np.maximum(band_on, s.min_band_points)
+    run = band_run(band_on, band_inside, s.band_fraction, s.min_band_points, s.max_band_gap, lid_like)
     if run is None:
         return None, "no band of points on the circle", None
     judged = (cx, cy, r)

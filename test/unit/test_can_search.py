@@ -147,6 +147,17 @@ def test_a_can_against_a_tall_box_is_found_when_a_wider_circle_takes_the_first_c
     assert_cans_at(result, to_table, objects)
 
 
+def test_a_taller_box_touching_a_can_does_not_carry_its_side_above_its_lid():
+    """The box's edge lies on the can's circle above the lid: the side's run of bands stops at the
+    lid's band (more points inside the disc than on the circle), so the lid is its top, not a far
+    inner wall under a box-high rim (fresh seed 3700 of "can touching box": an "open top", missed)."""
+    objects = [Obj("can", -0.0087, -0.0187, radius=0.031, height=0.108),
+               Obj("box", -0.0798, -0.0062, size=(0.0781, 0.0606, 0.1445))]
+    _, result, to_table = search(objects, camera_distance=0.850, tilt=0.976, yaw=0.375, seed=3700)
+    assert_cans_at(result, to_table, objects)
+    assert result.cans[0].height == pytest.approx(0.108, abs=0.004)
+
+
 def test_a_can_behind_two_taller_ones_is_fitted_by_its_side_and_its_lids_rim():
     """A wide can behind two taller ones shows a 0.55-rad stripe of side through the gap between them
     (no circle fits it alone) and its lid's rim over 1.3 rad, the rest of the rim in the front cans'
