@@ -374,12 +374,14 @@ def _without_flat_end(bands, residual, diagonal, run, r_eps, min_bands=2, min_co
     bands, residual (m) and `diagonal` (bool: on the flank toward the sensor, 30-65 degrees from the
     top) of the points within 3 r_eps of the circle on its facing half. Of the splits with at least
     min_bands bands and min_count points beyond, the one with the largest ratio of the rms residuals
-    beyond and before it, if at least `ratio` and the rms beyond at least floor r_eps, where at least
-    `off` of the diagonal points beyond (and min_diagonal) lie more than off_distance r_eps outside the
-    circle and at most off / 2 of the rest's (a box's corner is off the circle there, a can's side on it: a
-    neighbour along part of the can's side scatters too, but leaves that flank on it). The bands
-    next to the split scattering no more than `ratio` x the rest's rms stay (the can's last band),
-    and at least min_bands must go (docs/can_search.md, "Lying cans")."""
+    beyond and before it (less the run's band at the other end), if at least `ratio` and the rms
+    beyond at least floor r_eps, where at least `off` of the diagonal points beyond (and
+    min_diagonal) lie more than off_distance r_eps outside the circle and at most off / 2 of the
+    rest's (a box's corner is off the circle there, a can's side on it: a neighbour along part of the
+    can's side scatters too, but leaves that flank on it). The bands next to the split scattering no
+    more than `ratio` x the rest's rms stay, and one more with less than `off` of its diagonal
+    points off (the can's last band), and at least min_bands must go (docs/can_search.md, "Lying
+    cans")."""
     first, last = run
     keep = (bands >= first) & (bands <= last)
     b, sq = bands[keep] - first, residual[keep] ** 2
@@ -394,9 +396,12 @@ def _without_flat_end(bands, residual, diagonal, run, r_eps, min_bands=2, min_co
     zero = np.zeros((4, 1))
     below = np.hstack([zero, np.cumsum(per_band, axis=1)])
     from_on = np.hstack([np.cumsum(per_band[:, ::-1], axis=1)[:, ::-1], zero])
+    # The rest less its band at the other end of the run: that end's disc's rim scatters there as
+    # much as a box ("lying can touching box", fresh seed 3834).
     best, split = ratio, None
     for c in range(min_bands, len(count) - min_bands + 1):
-        for beyond, rest, at_end in ((from_on[:, c], below[:, c], True), (below[:, c], from_on[:, c], False)):
+        for beyond, rest, at_end in ((from_on[:, c], below[:, c] - per_band[:, 0], True),
+                                     (below[:, c], from_on[:, c] - per_band[:, -1], False)):
             (n_beyond, sq_beyond, d_beyond, out_beyond), (n_rest, sq_rest, d_rest, out_rest) = beyond, rest
             if n_beyond < min_count or n_rest < min_count:
                 continue
@@ -410,9 +415,15 @@ def _without_flat_end(bands, residual, diagonal, run, r_eps, min_bands=2, min_co
         return run
     c, at_end, rms_rest = split
     scatters = (band_rms > ratio * rms_rest) & (count > 0)
+    # A band whose flank lies on the circle is the can's, however it scatters: its last band holds its
+    # end's disc's rim (held-out 1403 of "lying can touching box" lost it, 1 cm, to the box beyond).
+    flank_on = per_band[3] < off * per_band[2]
     gone = np.arange(c, len(count)) if at_end else np.arange(c - 1, -1, -1)
-    # Give back the bands next to the split that scatter no more than the can's side.
-    while len(gone) and not scatters[gone[0]]:
+    # Give back the bands next to the split that scatter no more than the can's side, and one more
+    # that lies on its flank (a neighbour's round side beyond the end has its flank on the circle too).
+    end_band = False
+    while len(gone) and (not scatters[gone[0]] or (flank_on[gone[0]] and not end_band)):
+        end_band |= bool(scatters[gone[0]])
         gone = gone[1:]
     if np.count_nonzero(scatters[gone]) < min_bands:
         return run
