@@ -937,8 +937,8 @@ def _rest_hidden(side_xy, cx, cy, r, r_eps, z_lo, z_hi, ctx, samples=13, limb=1.
     toward = np.arctan2(front[1], front[0])
     # Held-out 1800 of "cluttered table": a can seen between two objects in front over 0.82 rad, its
     # limb's last 10 degrees in one pixel column that the grid leaves out.
-    grid_arc = g.sampled_arc(g.near_half_angles(toward, limb, samples), (cx, cy, 0.5 * (z_lo + z_hi)), (0, 0, 1),
-                             (1, 0, 0), r, ctx.sensor, ctx.ray_angle)
+    grid_arc = g.sampled_arc(g.near_half_angles(toward, limb, samples), cx, cy, r, 0.5 * (z_lo + z_hi), ctx.sensor,
+                             ctx.ray_angle)
     unseen = g.unseen_angles(np.arctan2(side_xy[:, 1] - cy, side_xy[:, 0] - cx), toward, limb, samples, grid_arc)
     if len(unseen) == 0:
         return True
@@ -1404,7 +1404,7 @@ def _lying(points, rest, ctx):
     pts = points[rest]
     sigma = _sigma(ctx, pts.mean(axis=0))
     found, why = lying.lying_cans(pts, max(c.r_eps, c.r_eps_sigmas * sigma), sigma, c, ctx.search, ctx.sensor,
-                                  ctx.standing, ctx.ray_angle)
+                                  ctx.standing)
     return [_lying_result(can, rest, ctx) for can in found], why
 
 

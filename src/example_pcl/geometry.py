@@ -460,25 +460,22 @@ def unseen_angles(seen, toward, limb=1.3, samples=13, tolerance=None):
     return theta[gap > (half if tolerance is None else np.maximum(half, tolerance))]
 
 
-def sampled_arc(theta, centre, axis, first, r, sensor, ray_angle):
-    """The angle (rad, float64 (K,)) about a cylinder's axis between the places that neighbouring
-    pixels of a grid `ray_angle` (rad) apart meet on its circle of radius r (m) about centre ((3,)),
-    at the angles theta (rad, (K,)) from the unit vector `first` (across the axis) toward axis x first:
-    r dtheta |t x u| / range = ray_angle, t the circle's tangent and u the ray from the sensor ((3,),
-    same frame) across the axis (pixels along it meet the same angle; the camera does not roll). An
-    upright can: axis (0, 0, 1), across the image's columns; a lying can: its horizontal axis. Toward
-    the limbs the side turns away from the sensor and one pixel spans a wider arc: 4 degrees facing
-    it, 15 at 70 degrees from it (r 43 mm, 0.9 m away, every 2nd pixel of a Kinect)."""
-    theta = np.asarray(theta, dtype=float)[:, None]
-    axis, first = np.asarray(axis, dtype=float), np.asarray(first, dtype=float)
-    second = np.cross(axis, first)
-    rays = np.asarray(centre, dtype=float) + r * (np.cos(theta) * first + np.sin(theta) * second) - sensor
-    across_axis = rays - np.outer(rays @ axis, axis)
-    tangents = -np.sin(theta) * first + np.cos(theta) * second
-    tangent_along_ray = (np.sum(tangents * across_axis, axis=1)
-                         / np.maximum(np.linalg.norm(across_axis, axis=1), 1e-12))
+def sampled_arc(theta, cx, cy, r, z, sensor, ray_angle):
+    """The angle (rad, float64 (K,)) about the vertical axis (cx, cy) between the places that
+    neighbouring columns of a grid `ray_angle` (rad) apart meet on its circle of radius r (m) at
+    height z, at the angles theta (rad, (K,)): r dtheta |t x u| / range = ray_angle, t the circle's
+    tangent and u the ray from the sensor ((3,), same frame) seen from above (the camera does not
+    roll; a side is tall enough for every row). Toward the limbs the side turns away from the sensor
+    and one column spans a wider arc: 4 degrees facing it, 15 at 70 degrees from it (r 43 mm, 0.9 m
+    away, every 2nd pixel of a Kinect)."""
+    theta = np.asarray(theta, dtype=float)
+    places = np.column_stack([cx + r * np.cos(theta), cy + r * np.sin(theta), np.full(len(theta), float(z))])
+    rays = places - np.asarray(sensor, dtype=float)
+    ranges = np.linalg.norm(rays, axis=1)
+    level = np.maximum(np.hypot(rays[:, 0], rays[:, 1]), 1e-12)
+    tangent_along_ray = (-np.sin(theta) * rays[:, 0] + np.cos(theta) * rays[:, 1]) / level
     across = np.sqrt(np.maximum(1.0 - tangent_along_ray ** 2, 1e-6))
-    return ray_angle * np.linalg.norm(rays, axis=1) / (r * across)
+    return ray_angle * ranges / (r * across)
 
 
 def ray_angle(organized, viewpoint, row_step=48):

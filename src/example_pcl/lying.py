@@ -343,21 +343,14 @@ def _through_hidden(run, may_join, bands, on, dl, dz, fit, a0, band, r_eps, sens
     return first, last
 
 
-def _hidden_where_unseen(fit, axial, seen, sensor, occluders, ray_angle=0.0):
+def _hidden_where_unseen(fit, axial, seen, sensor, occluders):
     """Whether the places on the half of the cylinder fit ((theta, offset, zc, r, ...)) facing the
     sensor, at the axial coordinates `axial` (m), that no angle in `seen` (rad, from the lateral axis)
-    comes near (geometry.unseen_angles; toward the limbs within the arc one pixel of a grid ray_angle
-    (rad) apart spans there, geometry.sampled_arc; 0: not known) all lie behind one of the occluders
-    ((M, 3), m) seen from the sensor; sensor, occluders and fit in one frame (the fits' coordinates)."""
+    comes near (geometry.unseen_angles) all lie behind one of the occluders ((M, 3), m) seen from the
+    sensor; sensor, occluders and fit in one frame (the fits' coordinates)."""
     t, d, zc, r = fit[:4]
     fl, fz = _toward_sensor(t, d, zc, sensor)
-    toward = np.arctan2(fz, fl)
-    tolerance = None
-    if ray_angle > 0:
-        along, lateral = np.array([math.cos(t), math.sin(t), 0.0]), np.array([-math.sin(t), math.cos(t), 0.0])
-        centre = float(np.mean(axial)) * along + d * lateral + (0.0, 0.0, zc)
-        tolerance = g.sampled_arc(g.near_half_angles(toward), centre, along, lateral, r, sensor, ray_angle)
-    unseen = g.unseen_angles(seen, toward, tolerance=tolerance)
+    unseen = g.unseen_angles(seen, np.arctan2(fz, fl))
     if len(unseen) == 0:
         return True
     lateral, height = d + r * np.cos(unseen), zc + r * np.sin(unseen)
@@ -548,7 +541,7 @@ class LyingCan:
     rims: np.ndarray
 
 
-def lying_cans(points, r_eps, sigma, config, search, sensor=None, occluders=None, ray_angle=0.0):
+def lying_cans(points, r_eps, sigma, config, search, sensor=None, occluders=None):
     """Every lying can among points (float64 (N, 3), plane frame, m), which may hold other objects
     touching them: (list of LyingCan, each one's masks over `points`; why the rest is no lying can).
 
@@ -557,7 +550,7 @@ def lying_cans(points, r_eps, sigma, config, search, sensor=None, occluders=None
     found, why = [], ""
     while np.count_nonzero(free) >= config.min_fit_points and len(found) < search.max_rounds:
         idx = np.flatnonzero(free)
-        can, why = lying_can(points[idx], r_eps, sigma, config, search, sensor, occluders, ray_angle)
+        can, why = lying_can(points[idx], r_eps, sigma, config, search, sensor, occluders)
         if can is None:
             break
         inliers, mine, rims = (np.zeros(len(points), bool) for _ in range(3))
@@ -567,7 +560,7 @@ def lying_cans(points, r_eps, sigma, config, search, sensor=None, occluders=None
     return found, why
 
 
-def lying_can(points, r_eps, sigma, config, search, sensor=None, occluders=None, ray_angle=0.0):
+def lying_can(points, r_eps, sigma, config, search, sensor=None, occluders=None):
     """A lying can among points (float64 (N, 3), plane frame, m): (LyingCan, "") or (None, why not).
 
     r_eps: inlier distance (m); sigma: depth noise there (m); config: auto_finder.AutoConfig (radius
@@ -576,10 +569,9 @@ def lying_can(points, r_eps, sigma, config, search, sensor=None, occluders=None,
     axis, max_taper, taper_sigmas, max_facet_ratio: a section no rounder than a line); sensor: (x,
     y, z), plane frame (m), or None: only the points on a cylinder's half facing it are its side
     (_facing); occluders (float (N, 3), plane frame, m, or None): every point standing on the
-    table, what may hide part of its side (_rest_hidden); ray_angle (rad): between the rays of
-    neighbouring pixels of the grid searched (geometry.ray_angle; 0: not known). The distinct
-    cylinders of fit_lying_cylinders are judged in turn on their extent; the first that passes is
-    the can, else the first one's reason is why not."""
+    table, what may hide part of its side (_rest_hidden). The
+    distinct cylinders of fit_lying_cylinders are judged in turn on their extent; the first that
+    passes is the can, else the first one's reason is why not."""
     c, s = config, search
     # A can on its side is at most one diameter high: the points above are another object's.
     limit = 2 * c.max_radius + s.lying_gap + 3 * sigma
@@ -595,14 +587,14 @@ def lying_can(points, r_eps, sigma, config, search, sensor=None, occluders=None,
         return None, "lying: no horizontal cylinder fits its points"
     why = ""
     for k, fit in enumerate(fits):
-        can, reason = judge_lying(points, fit, r_eps, sigma, c, s, sensor, occluders, ray_angle=ray_angle)
+        can, reason = judge_lying(points, fit, r_eps, sigma, c, s, sensor, occluders)
         if can is not None:
-            return _tighter(points, can, fits[k + 1:], r_eps, sigma, c, s, sensor, occluders, ray_angle), ""
+            return _tighter(points, can, fits[k + 1:], r_eps, sigma, c, s, sensor, occluders), ""
         why = why or reason
     return None, why
 
 
-def _tighter(points, can, others, r_eps, sigma, config, search, sensor, occluders, ray_angle, ratio=2.0):
+def _tighter(points, can, others, r_eps, sigma, config, search, sensor, occluders, ratio=2.0):
     """can, or a shorter one of the other fits on the same side (sharing more than half its side
     points) whose circle explains it more than `ratio` x better (rms): a box at a can's end as high
     and as wide as it draws a circle around both, whose compromise keeps the flank test from
@@ -610,14 +602,14 @@ def _tighter(points, can, others, r_eps, sigma, config, search, sensor, occluder
     for fit in others:
         if fit.rms * ratio >= can.rms:
             continue
-        other, _ = judge_lying(points, fit, r_eps, sigma, config, search, sensor, occluders, ray_angle=ray_angle)
+        other, _ = judge_lying(points, fit, r_eps, sigma, config, search, sensor, occluders)
         if (other is not None and other.length < can.length and other.rms * ratio < can.rms
                 and (other.inliers & can.inliers).sum() > 0.5 * min(other.inliers.sum(), can.inliers.sum())):
             can = other
     return can
 
 
-def judge_lying(points, fit, r_eps, sigma, config, search, sensor=None, occluders=None, min_arc=None, ray_angle=0.0):
+def judge_lying(points, fit, r_eps, sigma, config, search, sensor=None, occluders=None, min_arc=None):
     """fit (a LyingFit, or None: none fitted) judged as a lying can on the points of its extent, as
     lying_can judges its own fits: (LyingCan, "") or (None, why). Arguments as lying_can's; min_arc
     (rad): the least arc of side seen (None: config's; the tracker keeps a hidden can's lower bound)."""
@@ -672,8 +664,7 @@ def judge_lying(points, fit, r_eps, sigma, config, search, sensor=None, occluder
     min_arc = c.min_arc if min_arc is None else min_arc
     # A can behind another, touching it, shows only the part of its side above the front one.
     if arc < min_arc and not (arc >= s.min_occluded_arc and occluders is not None and sensor is not None
-                              and _rest_hidden(fit, lateral[side], z[side], a_lo, a_hi, r_eps, sensor, occluders,
-                                               ray_angle)):
+                              and _rest_hidden(fit, lateral[side], z[side], a_lo, a_hi, r_eps, sensor, occluders)):
         return None, f"lying: side seen over {arc:.2f} rad < {min_arc:.2f} rad"
     length = float(a_hi - a_lo)
     if length < c.min_can_height:
@@ -714,16 +705,15 @@ def _others(fit, occluders, a_lo, a_hi, r_eps):
     return _from_origin(occluders[~own], fit.origin)
 
 
-def _rest_hidden(fit, side_lateral, side_z, a_lo, a_hi, r_eps, sensor, occluders, ray_angle=0.0):
+def _rest_hidden(fit, side_lateral, side_z, a_lo, a_hi, r_eps, sensor, occluders):
     """Whether every part of the near half of a lying can's side (fit, its ends at the axial
     coordinates a_lo..a_hi, m) that shows none of its side points (lateral and z coordinates) lies
     behind one of the occluders (float (N, 3), plane frame, m) seen from the sensor ((x, y, z), plane
     frame), next to both ends: a lying can behind another, touching it, is seen only above the front
-    one (as can_search's upright _rest_hidden, also in taking a limb's angle as seen within the arc
-    one pixel of a grid ray_angle (rad) apart spans there: "lying cans touching" 3535)."""
+    one (as can_search's upright _rest_hidden)."""
     return _hidden_where_unseen((fit.theta, fit.offset, fit.zc, fit.radius), (a_lo + r_eps, a_hi - r_eps),
                                 np.arctan2(side_z - fit.zc, side_lateral - fit.offset),
-                                _from_origin(sensor, fit.origin), _others(fit, occluders, a_lo, a_hi, r_eps), ray_angle)
+                                _from_origin(sensor, fit.origin), _others(fit, occluders, a_lo, a_hi, r_eps))
 
 
 def _bulging(axial, rho, a_lo, length, sigma, s):

@@ -547,8 +547,7 @@ def test_generated_lying_cans_touching_are_found(case, seed):
                                         ("lying cans touching", 1007), ("lying can touching box", 601),
                                         ("lying can touching box", 803), ("lying can touching box", 1209),
                                         ("cluttered table", 1602), ("lying can touching box", 3514),
-                                        ("cluttered table", 54), ("lying cans touching", 3535),
-                                        ("lying can touching box", 3834)])
+                                        ("cluttered table", 54), ("lying can touching box", 3834)])
 def test_held_out_lying_misses_are_found_where_they_lie(case, seed):
     """Held-out seeds looked at since. 1000: a lying can whose end touches a box was found 3.4 cm short
     (every 7th point of the cluster, the fit's sample, left two bands next to the box with two points
@@ -570,9 +569,6 @@ def test_held_out_lying_misses_are_found_where_they_lie(case, seed):
     wide as the can and 9 mm lower, its top meeting the circle on both flanks (and inside it between)
     and its face near the flank: the run went on over it, the can 49 and 16 mm too long (its middle 24
     and 10 mm off); a band whose crown holds as many points inside the circle as on it ends the run now.
-    3535 (fresh): a lying can behind another seen over 1.57 rad, the rest of its near half hidden but
-    for the angle at its far limb, 7 degrees beyond the last side point there where one pixel spans
-    25 (that angle is seen now, as an upright can's: lying._rest_hidden).
     3834 (fresh): a box as wide as the can and 5 mm lower at its end, its flank 6.2 mm rms off the
     circle against 2.3 for the rest of the run, whose band at the other end (the end's disc's rim)
     scatters as much: the run went on over the box, 48 mm too long (the rest is judged without that
