@@ -643,9 +643,10 @@ def _judge_side(free, cx, cy, r, r_eps, cutoff, sigma, z_lo, z_hi, top, claim, c
 
 
 def _offset_step(bands, residual, lo, hi, min_step, min_bands=2):
-    """(first, last) band of the run lo..hi on the side of the largest step in the mean residual
-    (m) per band of the points near a circle (their bands) that holds more of them, when that step
-    exceeds min_step (m) with at least min_bands bands of points on each side; None: no such step."""
+    """The part (first, last band) of the run lo..hi on one side of the largest step in the mean
+    residual per band of the points near a circle (bands: theirs; residual: their distance from it
+    less its radius, m), the side with more of them, when that step exceeds min_step (m) with at
+    least min_bands bands of points on each side; None: no such step."""
     keep = (bands >= lo) & (bands <= hi)
     count = np.bincount(bands[keep] - lo, minlength=hi - lo + 1)
     total = np.bincount(bands[keep] - lo, residual[keep], minlength=hi - lo + 1)
