@@ -109,6 +109,11 @@ class AutoConfig:
     search: str = "cylinders"
     cylinders: can_search.CylinderSearchConfig = can_search.CylinderSearchConfig()
 
+    def depth_sigma(self, point, sensor):
+        """The depth noise sigma (m) at point (3,) seen from sensor (3,), one frame, m:
+        noise_coefficient x range^2."""
+        return self.noise_coefficient * float(np.sum((np.asarray(point) - sensor) ** 2))
+
     def validate(self):
         """Raises PerceptionError naming the first value that makes no sense."""
         positive = ("ransac_step", "plane_distance", "max_planes", "refine_step", "refine_band", "refine_iterations",
@@ -280,7 +285,7 @@ def fit_upright_cylinder(points_plane, sensor_plane, config=AutoConfig()):
         return None, height, None, 0, f"floats {100 * bottom:.1f} cm above the table (not standing on it)"
     if height < c.min_can_height:
         return None, height, None, 0, f"only {100 * height:.1f} cm tall (min {100 * c.min_can_height:.1f} cm)"
-    sigma = c.noise_coefficient * float(np.sum((pts.mean(axis=0) - sensor_plane) ** 2))
+    sigma = c.depth_sigma(pts.mean(axis=0), sensor_plane)
     side = pts[(z >= c.fit_bottom + 3 * sigma) & (z <= height - c.top_margin - 3 * sigma)]
     if len(side) < c.min_fit_points:
         return None, height, None, len(side), f"{len(side)} side points (min {c.min_fit_points})"
@@ -379,14 +384,10 @@ def _with_hidden_ends(can, in_plane, standing, cluster, T_plane_from_sensor, sen
     the plane frame, m) but its cluster's (cluster: flat indices): an object touching the can's end
     is in its cluster and bounds it there ("lying can touching box"); one standing apart in front of
     the end hides it ("cluttered table" 3531, 3542)."""
-    apart = np.zeros(int(np.prod(in_plane.shape[:-1])), bool)
-    apart[standing] = True
-    apart[cluster] = False
-    occluders = in_plane.reshape(-1, 3)[apart].astype(float)
+    occluders = in_plane.reshape(-1, 3)[np.setdiff1d(standing, cluster)].astype(float)
     start = transforms.apply(T_plane_from_sensor, can.base_center)
     u = T_plane_from_sensor[:3, :3] @ can.axis
-    offset = start + 0.5 * can.height * u - sensor_plane
-    r_eps = max(config.r_eps, config.r_eps_sigmas * config.noise_coefficient * float(offset @ offset))
+    r_eps = max(config.r_eps, config.r_eps_sigmas * config.depth_sigma(start + 0.5 * can.height * u, sensor_plane))
     hidden = lying.hidden_ends(start, u, can.height, can.radius, r_eps, sensor_plane, occluders)
     return dataclasses.replace(can, ends_hidden=hidden)
 

@@ -395,7 +395,7 @@ def _percentile(values, q):
 
 
 def _sigma(ctx, center):
-    return ctx.config.noise_coefficient * float(np.sum((np.asarray(center) - ctx.sensor) ** 2))
+    return ctx.config.depth_sigma(center, ctx.sensor)
 
 
 def _facing(x, y, cx, cy, r, ctx):
@@ -545,7 +545,8 @@ def _judge_side(free, cx, cy, r, r_eps, cutoff, sigma, z_lo, z_hi, top, claim, c
     # The run's bands about the fitted circle: a step in the mean offset of their points near it is two
     # objects on a circle between them (a cup 8 mm wider on the can, seen from 1.3 m: fresh 3801 of
     # "cup on can"); the part with more points is judged.
-    near_circle = (np.abs(dist - r) <= 2 * r_eps) & _facing(x, y, cx, cy, r, ctx) & (z >= z_lo) & (z < z_hi)
+    facing = _facing(x, y, cx, cy, r, ctx)
+    near_circle = (np.abs(dist - r) <= 2 * r_eps) & facing & (z >= z_lo) & (z < z_hi)
     part = _offset_step(free.bands[near][near_circle], dist[near_circle] - r, int(round(z_lo / s.band_height)),
                         int(round(z_hi / s.band_height)) - 1, 0.5 * r_eps)
     if part is not None:
@@ -555,7 +556,7 @@ def _judge_side(free, cx, cy, r, r_eps, cutoff, sigma, z_lo, z_hi, top, claim, c
     top = min(top, _lid(dist, z, r, r_eps, z_lo, z_hi, s))
     z_end = min(z_hi, top - c.top_margin - 3 * sigma)
     in_run = (z >= z_lo) & (z < z_end)
-    facing_run = _facing(x, y, cx, cy, r, ctx) & in_run
+    facing_run = facing & in_run
     # The robust fit's outliers are another surface's points, not the can's side.
     side = (np.abs(dist - r) <= min(r_eps, cutoff)) & facing_run
     n_side = int(np.count_nonzero(side))
