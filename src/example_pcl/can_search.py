@@ -1232,9 +1232,10 @@ def _lid_only(free, ctx):
     by the stripe of side under it: _rim_pinned_by_side), holding 95 % of the lid's points; no can
     found there (overlapping one by more than r_eps). Then its side: seen mostly lower than
     min_can_height under the lid, over at least min_fit_points, judged on the rim's circle as the
-    rounds judge one (verify, rim=True); else hidden: the points near the circle on its near half within
-    min_can_height under the lid, and every part of that half that shows none of them behind
-    something nearer the sensor below that (_rest_hidden), and no open top."""
+    rounds judge one (verify, rim=True; fewer than min_fit_points that low are too few to judge); else
+    hidden: the points near the circle on its near half within min_can_height under the lid, and
+    every part of that half that shows none of them behind something nearer the sensor below that
+    (_rest_hidden), and no open top."""
     c, s = ctx.config, ctx.search
     pts, z = free.points, free.z
     high = z >= c.min_can_height
@@ -1302,12 +1303,13 @@ def _lid_at(free, band, level, sigma, r_eps, ctx):
         # stripe of side seen beside that can lies off it (held-out 1507 of "cluttered table": 5 mm
         # outside): the circle refitted to both, if its lid's rim still fits it.
         under = (np.abs(dist - r) <= 2 * r_eps) & (z < hidden_below) & facing
-        if np.count_nonzero(under) < c.min_fit_points:
-            return None
-        joint = _rim_with_side(rim, pts[under], lid, sigma, r_eps, ctx)
-        if joint is None:
-            return None
-        return verify(free, joint.cx, joint.cy, joint.radius, ctx, rim=True)[0]
+        if np.count_nonzero(under) >= c.min_fit_points:
+            joint = _rim_with_side(rim, pts[under], lid, sigma, r_eps, ctx)
+            if joint is None:
+                return None
+            return verify(free, joint.cx, joint.cy, joint.radius, ctx, rim=True)[0]
+        # Too few of them to judge as a side or to refit the rim with: hidden, as when fewer are seen
+        # (fresh 4048 of "cans touching": 22 points low on a can behind a wider one).
     if (_open_top(pts[dist <= r + r_eps], cx, cy, r, r_eps, 0.0, z_lid, ctx)
             or not _rest_hidden(pts[side, :2], cx, cy, r, r_eps, c.min_height + 0.01, hidden_below, ctx)):
         return None
