@@ -1021,26 +1021,37 @@ def biweight_loss(xy, cx, cy, r, cutoff):
     return float(np.sum(1.0 - (1.0 - t * t) ** 3))
 
 
-def band_run(band_on, band_inside, fraction, min_points, max_gap, blocked=None):
+def band_run(band_on, band_inside, fraction, min_points, max_gap, blocked=None, starts=3):
     """The run of bands along a cylinder's axis that its circle explains: (first, last) band, or None.
 
     band_on, band_inside: points per band on the circle and inside its disc (height bands of an
-    upright can in can_search, bands along a lying can's axis in lying). The run starts at the band
+    upright can in can_search, bands along a lying can's axis in lying). A run starts at the band
     with most points on the circle and grows while a band has at least max(min_points, fraction x
     the start's) on it and no more inside than on it, over gaps of at most max_gap bands; a band
-    `blocked` (bool, per band; None: none) ends it, no gap (another object is seen there)."""
-    # The start is the fullest band with no more inside than on the circle (not the lid's band).
+    `blocked` (bool, per band; None: none) ends it, no gap (another object is seen there). Of the
+    runs from the fullest band and from the fullest beyond the runs before it (up to `starts`), the
+    one with most points on the circle."""
+    # A start is a band with no more inside than on the circle (not the lid's band).
     side_like = band_inside <= band_on
-    if not side_like.any():
-        return None
-    start = int(np.argmax(np.where(side_like, band_on, -1)))
-    need = max(min_points, fraction * band_on[start])
-    good = (band_on >= need) & side_like
-    if not good[start]:
-        return None
-    blocked = np.zeros(len(good), bool) if blocked is None else blocked
-    return (_last_good(good, blocked, start, range(start - 1, -1, -1), max_gap),
-            _last_good(good, blocked, start, range(start + 1, len(good)), max_gap))
+    candidates = np.where(side_like, band_on, -1)
+    blocked = np.zeros(len(band_on), bool) if blocked is None else blocked
+    best, most = None, -1
+    for _ in range(starts):
+        start = int(np.argmax(candidates))
+        need = max(min_points, fraction * band_on[start])
+        if candidates[start] < need:
+            break
+        good = (band_on >= need) & side_like
+        run = (_last_good(good, blocked, start, range(start - 1, -1, -1), max_gap),
+               _last_good(good, blocked, start, range(start + 1, len(good)), max_gap))
+        total = int(band_on[run[0]:run[1] + 1][good[run[0]:run[1] + 1]].sum())
+        if total > most:
+            best, most = run, total
+        # The next run starts beyond this one and does not reach into it.
+        candidates[run[0]:run[1] + 1] = -1
+        blocked = blocked.copy()
+        blocked[run[0]:run[1] + 1] = True
+    return best
 
 
 def _last_good(good, blocked, start, order, max_gap):
