@@ -349,6 +349,20 @@ def test_a_narrow_box_is_no_can(seed):
     assert result.cans == [], result.message
 
 
+def test_a_small_boxs_top_whose_faces_show_under_it_is_no_hidden_can():
+    """Fresh 4111 of "cluttered table": a 4.4 x 4.5 cm box's top passed the lid's rim tests (r 24 mm)
+    and its faces, seen down to 16 mm over the table, were taken for a hidden can's side: 43 of the 94
+    points near the circle lay more than min_can_height under the lid, not more than half. As many as
+    min_fit_points lower are judged as a side. The one can found (within 3 mm), nothing else."""
+    scene = sc.generate_scene(so.case_spec("cluttered table", 4111))
+    to_table = transforms.invert(np.asarray(scene.truth["camera_from_table"]))
+    result = af.find_cans(scene.xyz)
+    truth = [transforms.apply(to_table, t["base_center"])[:2] for t in scene.truth["objects"] if t["is_can"]]
+    found = [table_xy(to_table, c)[:2] for c in result.cans]
+    assert len(truth) == 1 and len(found) == 1, result.message
+    assert np.hypot(*(found[0] - truth[0])) < 0.003
+
+
 def test_a_corner_the_circle_touches_is_two_flat_faces():
     """The same box alone, turned so that a circle touches both faces of the corner facing the
     camera: a can when the two halves' straightness is not looked at, none when it is."""
