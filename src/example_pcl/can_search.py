@@ -1275,10 +1275,12 @@ def _lid_at(free, band, level, sigma, r_eps, ctx):
         return None
     if not _lid_rim(rim, lid, sigma, r_eps, ctx):
         # A lid the can in front cuts short shows its rim over less than lid_arc: pinned by the stripe
-        # of side under it ("cans touching" 2408, development 73 of "cluttered table").
-        rim = _rim_pinned_by_side(rim, pts, z_lid, lid, sigma, r_eps, ctx)
-        if rim is None:
+        # of side under it ("cans touching" 2408, development 73 of "cluttered table"), or, with no
+        # such stripe, judged as it is if something in front stands higher (_lid_rim's shaded).
+        pinned = _rim_pinned_by_side(rim, pts, z_lid, lid, sigma, r_eps, ctx)
+        if pinned is None and not _lid_rim(rim, lid, sigma, r_eps, ctx, shaded=True):
             return None
+        rim = rim if pinned is None else pinned
     cx, cy, r, far = rim.cx, rim.cy, rim.radius, rim.outline
     if _top_of_claimed(cx, cy, r, z_lid, r_eps, ctx):
         return None
@@ -1341,20 +1343,28 @@ def _rim_pinned_by_side(rim, pts, z_lid, lid, sigma, r_eps, ctx):
     return _rim_with_side(rim, pts[under, :2], lid, sigma, r_eps, ctx, side_counts=True)
 
 
-def _lid_rim(rim, lid, sigma, r_eps, ctx, beside=None):
+def _lid_rim(rim, lid, sigma, r_eps, ctx, beside=None, shaded=False):
     """Whether a RimCircle is a can's lid's (_lid_only): a can's radius, round (facet_ratio), rms
     within max(2 mm, 2 sigma) over at least lid_arc, holding 95 % of the lid's points (float (N, 3),
     plane frame, m), and no can found there (overlapping one by more than r_eps, m: two touching
     cans' circles overlap by their fits' errors). beside: the stripe of side (float (M, 2), m) the rim
     was refitted with: a rim seen over min_hidden_arc will do when both span min_arc, as a side must
     (the lid of a can behind a taller one, cut short by its shadow: "cans touching" 5, its rim over
-    1.2 rad, 2.25 with the side), and its rms may reach a sample spacing (RimCircle.fits, pinned)."""
+    1.2 rad, 2.25 with the side), and its rms may reach a sample spacing (RimCircle.fits, pinned).
+    shaded: over min_arc will do when an object in front stands higher than the lid, whose shadow may
+    cut it short (fresh 4121 of "cans touching": a rim over 2.43 rad, no side seen)."""
     c, s = ctx.config, ctx.search
     cx, cy, r = rim.cx, rim.cy, rim.radius
     pinned = beside is not None
     if pinned and rim.arc(beside) < c.min_arc:
         return False
-    return (c.min_radius <= r <= c.max_radius and rim.fits(sigma, s.min_hidden_arc if pinned else s.lid_arc, pinned)
+    if pinned:
+        min_rim_arc = s.min_hidden_arc
+    elif shaded and _in_front(cx, cy, r, float(np.median(lid[:, 2])) + s.band_height, np.inf, ctx):
+        min_rim_arc = c.min_arc
+    else:
+        min_rim_arc = s.lid_arc
+    return (c.min_radius <= r <= c.max_radius and rim.fits(sigma, min_rim_arc, pinned)
             and g.facet_ratio(rim.outline, cx, cy, rim.outline_radius) >= s.max_facet_ratio
             and _holds_lid(lid, cx, cy, r, r_eps)
             and not any(not other.lying and np.hypot(*(other.center_plane - (cx, cy))) < r + other.radius - r_eps
