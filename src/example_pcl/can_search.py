@@ -1229,8 +1229,9 @@ def _lid_only(free, ctx):
     fullest bands (up to lid_levels, not next to one tried) when that is no can's. The circle
     of its rim (geometry.rim_circle, from its outline on the half away from the sensor): a can's
     radius, round (facet_ratio), rms within max(2 mm, 2 sigma), over at least lid_arc (or less, pinned
-    by the stripe of side under it: _rim_pinned_by_side), holding 95 % of the lid's points; no can
-    found there (overlapping one by more than r_eps). Then its side: seen mostly lower than
+    by the stripe of side under it: _rim_pinned_by_side; else over min_arc with something higher in
+    front: _lid_rim's shaded), holding 95 % of the lid's points; no can found there (overlapping one
+    by more than r_eps). Then its side: seen mostly (or over min_fit_points) lower than
     min_can_height under the lid, over at least min_fit_points, judged on the rim's circle as the
     rounds judge one (verify, rim=True; fewer than min_fit_points that low are too few to judge); else
     hidden: the points near the circle on its near half within min_can_height under the lid, and
