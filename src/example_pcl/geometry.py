@@ -1034,7 +1034,8 @@ def band_run(band_on, band_inside, fraction, min_points, max_gap, blocked=None, 
     # A start is a band with no more inside than on the circle (not the lid's band).
     side_like = band_inside <= band_on
     candidates = np.where(side_like, band_on, -1)
-    blocked = np.zeros(len(band_on), bool) if blocked is None else blocked
+    # A copy: the runs found block the next ones.
+    blocked = np.zeros(len(band_on), bool) if blocked is None else blocked.copy()
     best, most = None, -1
     for _ in range(starts):
         start = int(np.argmax(candidates))
@@ -1049,7 +1050,6 @@ def band_run(band_on, band_inside, fraction, min_points, max_gap, blocked=None, 
             best, most = run, total
         # The next run starts beyond this one and does not reach into it.
         candidates[run[0]:run[1] + 1] = -1
-        blocked = blocked.copy()
         blocked[run[0]:run[1] + 1] = True
     return best
 

@@ -569,9 +569,9 @@ def lying_can(points, r_eps, sigma, config, search, sensor=None, occluders=None)
     axis, max_taper, taper_sigmas, max_facet_ratio: a section no rounder than a line); sensor: (x,
     y, z), plane frame (m), or None: only the points on a cylinder's half facing it are its side
     (_facing); occluders (float (N, 3), plane frame, m, or None): every point standing on the
-    table, what may hide part of its side (_rest_hidden). The
-    distinct cylinders of fit_lying_cylinders are judged in turn on their extent; the first that
-    passes is the can, else the first one's reason is why not."""
+    table, what may hide part of its side (_rest_hidden). The distinct cylinders of
+    fit_lying_cylinders are judged in turn on their extent; the first that passes is the can, else
+    the first one's reason is why not."""
     c, s = config, search
     # A can on its side is at most one diameter high: the points above are another object's.
     limit = 2 * c.max_radius + s.lying_gap + 3 * sigma
