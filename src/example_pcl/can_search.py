@@ -1366,7 +1366,7 @@ def _lid_rim(rim, lid, sigma, r_eps, ctx, beside=None, shaded=False):
     else:
         min_rim_arc = s.lid_arc
     return (c.min_radius <= r <= c.max_radius and rim.fits(sigma, min_rim_arc, pinned)
-            and g.facet_ratio(rim.outline, cx, cy, rim.outline_radius) >= s.max_facet_ratio
+            and g.facet_ratio(rim.outline[rim.kept], cx, cy, rim.outline_radius) >= s.max_facet_ratio
             and _holds_lid(lid, cx, cy, r, r_eps)
             and not any(not other.lying and np.hypot(*(other.center_plane - (cx, cy))) < r + other.radius - r_eps
                         for other in ctx.found))

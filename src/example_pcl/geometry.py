@@ -758,12 +758,19 @@ class RimCircle:
         return self.radius - 0.5 * self.spacing
 
     @property
+    def kept(self):
+        """Which outline points are the rim's (bool (K,)): all but the (at most) two farthest more
+        than r_eps inside the circle: where something in front cuts the lid short, the ends of the arc
+        seen lie inside the rim (a box's corners stick out)."""
+        order = np.argsort(self.residual, kind="stable")
+        kept = np.ones(len(self.residual), bool)
+        kept[order[:min(2, int(np.count_nonzero(self.residual < -self.r_eps)))]] = False
+        return kept
+
+    @property
     def rms(self):
-        """RMS of the outline's residuals (m) less the (at most) two farthest more than r_eps inside
-        the circle: where something in front cuts the lid short, the ends of the arc seen lie inside
-        the rim (a box's corners stick out)."""
-        residual = np.sort(self.residual)
-        rim = residual[min(2, int(np.count_nonzero(residual < -self.r_eps))):]
+        """RMS of the residuals (m) of the outline points kept."""
+        rim = self.residual[self.kept]
         return float(np.sqrt(np.mean(rim ** 2))) if len(rim) else np.inf
 
     def arc(self, beside=None):
