@@ -242,12 +242,13 @@ def circle_hypotheses(xy, z, n, rng, min_radius, max_radius, slice_height, partn
     return cx[keep], cy[keep], r[keep], ((level[anchors[ok]] + 0.5) * slice_height)[keep]
 
 
-def flat_faces(xy, eps, min_span, min_points, rng, tries=32, max_faces=3, max_gap=0.02):
+def flat_faces(xy, eps, min_span, min_points, rng, tries=32, max_faces=3, max_gap=0.02, radii=(0.015, 0.08)):
     """Which of the points xy (float64 (M, 2), m, seen from above) lie on a flat vertical face (a box's
     or prism's): within eps of a line, a run along it at least min_span (m) long with no gap over
     max_gap (m), of at least min_points points. Up to max_faces lines, each the best of `tries`
     drawn through two points. A can's side is no such run: a line stays within eps of a circle of
-    radius r over 2 sqrt(2 r eps) only (44 mm for r = 80 mm, eps = 3 mm)."""
+    radius r over 2 sqrt(2 r eps) only (44 mm for r = 80 mm, eps = 3 mm); nor part of one, a can's
+    front in line with a face past its end (_without_tangent_ends; radii (m): a can's, min and max)."""
     face = np.zeros(len(xy), bool)
     for _ in range(max_faces):
         rest = np.flatnonzero(~face)
@@ -273,10 +274,39 @@ def flat_faces(xy, eps, min_span, min_points, rng, tries=32, max_faces=3, max_ga
         breaks = np.flatnonzero(np.diff(along) > max_gap)
         starts, ends = np.r_[0, breaks + 1], np.r_[breaks, len(along) - 1]
         k = int(np.argmax(along[ends] - along[starts]))
-        if along[ends[k]] - along[starts[k]] < min_span or ends[k] - starts[k] + 1 < min_points:
+        run = xy[rest[on[order]]]
+        lo, hi = _without_tangent_ends(run, along, starts[k], ends[k], min_span, 0.5 * max_gap, radii)
+        if along[hi] - along[lo] < min_span or hi - lo + 1 < min_points:
             break
-        face[rest[on[order[starts[k]:ends[k] + 1]]]] = True
+        face[rest[on[order[lo:hi + 1]]]] = True
     return face
+
+
+def _without_tangent_ends(run, along, lo, hi, min_span, gap, radii, min_points=6, min_bend=1.5):
+    """The run along[lo..hi] (sorted positions along a line, m; run: the points there, float (N, 2))
+    less a piece at either end shorter than min_span (m) beyond a gap over `gap` (m) that bends like a
+    can's front, where the rest still spans min_span: the front of a can in line with a box's face,
+    which the line stays near over a few centimetres a little way past the face's end (fresh 4134 of
+    "can touching box": 32 mm of it 16 mm past the face). Bends: at least min_points points whose own
+    (algebraic) circle has a radius within radii (m) and lies min_bend times closer to them (rms) than
+    their best line (geometry.line_ratio); a straight piece is the face's, seen past something in
+    front of it."""
+    breaks = lo + np.flatnonzero(np.diff(along[lo:hi + 1]) > gap)
+
+    def bends(a, b):
+        piece = run[a:b + 1]
+        if len(piece) < min_points:
+            return False
+        kx, ky, kr = (float(v[0]) for v in g.fit_circles_algebraic(piece))
+        return bool(radii[0] <= kr <= radii[1] and g.line_ratio(piece, kx, ky, kr) >= min_bend)
+
+    if (len(breaks) and along[breaks[0]] - along[lo] < min_span and along[hi] - along[breaks[0] + 1] >= min_span
+            and bends(lo, breaks[0])):
+        lo = breaks[0] + 1
+    if (len(breaks) and along[hi] - along[breaks[-1] + 1] < min_span and along[breaks[-1]] - along[lo] >= min_span
+            and bends(breaks[-1] + 1, hi)):
+        hi = breaks[-1]
+    return lo, hi
 
 
 def circle_members(xy, cx, cy, r, eps, sensor=None):
@@ -1138,7 +1168,7 @@ def search_cluster(points, ctx):
         tried_circles = []
         # No triplet from a box's or prism's flat faces: circles through their corners outscored a small
         # can beside a big box and took the round's verifications.
-        face = flat_faces(xy, 0.5 * r_eps, s.face_span, s.face_points, ctx.rng)
+        face = flat_faces(xy, 0.5 * r_eps, s.face_span, s.face_points, ctx.rng, radii=(c.min_radius, c.max_radius))
         for attempt, (cx, cy, r, z0, axy, az) in enumerate(_draws(xy, z_pool, face, tried, tried_circles, r_eps, ctx)):
             best = best_circles(axy, cx, cy, r, r_eps, s.verify if attempt == 0 else s.retry_verify,
                                 sensor=ctx.sensor, z=az, lid=s.band_height)

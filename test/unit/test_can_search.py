@@ -78,6 +78,24 @@ def test_flat_faces_finds_a_box_face_and_not_a_can_side():
     assert not found[60:].any()
 
 
+def test_a_can_front_in_line_with_a_box_face_past_its_end_is_no_part_of_the_face():
+    """A box's face (8 cm) and, 16 mm past its end, the front of a can of r 29 mm tangent to its line
+    (fresh 4134 of "can touching box"): the face is flat, the can's front is not. A face with a gap of
+    12 mm in its middle, each part shorter than the face span, stays one face; so does a straight
+    piece of it 16 mm past the rest (seen past something in front)."""
+    rng = np.random.default_rng(5)
+    face = np.c_[np.linspace(0.0, 0.08, 50), np.zeros(50)] + rng.normal(0, 0.0007, (50, 2))
+    angle = np.linspace(-np.pi / 2 - 0.6, -np.pi / 2 + 0.6, 30)
+    front = np.c_[0.096 + 0.029 * np.cos(angle) + 0.016, 0.029 + 0.029 * np.sin(angle)]
+    found = cs.flat_faces(np.concatenate([face, front]), 0.003, 0.06, 12, rng)
+    assert found[:50].mean() > 0.9
+    assert not found[50:].any()
+    gapped = np.concatenate([face[face[:, 0] < 0.034], face[face[:, 0] > 0.046] + (0.0, 0.0)])
+    assert cs.flat_faces(gapped, 0.003, 0.06, 12, np.random.default_rng(5)).all()
+    piece = np.c_[np.linspace(0.096, 0.126, 20), np.zeros(20)] + rng.normal(0, 0.0007, (20, 2))
+    assert cs.flat_faces(np.concatenate([face, piece]), 0.003, 0.06, 12, np.random.default_rng(5)).all()
+
+
 def test_the_last_draw_retries_a_circle_a_tried_one_took_out_but_none_like_one_tried():
     """Of the first draw's circles, _suppressed_by keeps one that a circle tried took out as sharing its
     points though elsewhere, and not one like a circle tried (within eps), even when it shares the
@@ -1187,7 +1205,9 @@ def test_a_tapered_round_object_is_rejected_as_tapered_and_a_can_is_not():
 # can in front cuts short, its rim over 2.2-2.3 rad, pinned by the stripe of side under it (cans touching
 # 2408, cluttered table 73); not a low box's top, its faces seen over 2.5 rad (cluttered table 83). A can
 # under a cup 8 mm wider seen steeply from above: the cup's rim put more points in its band than any band of
-# the can's side held, and the run of bands was the rim's alone (cup on can 3824; geometry.band_run).
+# the can's side held, and the run of bands was the rim's alone (cup on can 3824; geometry.band_run). A can
+# whose front is in line with the face of a box it touches: the face's run took 32 mm of the can's front past
+# a gap of 16 mm, and no triplet was drawn on the can (can touching box 4134; flat_faces).
 @pytest.mark.parametrize("case, seed", [("can touching box", 2), ("can touching box", 12), ("can touching box", 28),
                                         ("can touching box", 1), ("can touching box", 47),
                                         ("can touching box", 45), ("can touching box", 57), ("can touching box", 97),
@@ -1210,7 +1230,8 @@ def test_a_tapered_round_object_is_rejected_as_tapered_and_a_can_is_not():
                                         ("can touching box", 1708), ("cluttered table", 1800),
                                         ("can touching box", 1909), ("cluttered table", 2605),
                                         ("cans touching", 3202), ("cans touching", 3208), ("cans touching", 2408),
-                                        ("cluttered table", 73), ("cluttered table", 83), ("cup on can", 3824)])
+                                        ("cluttered table", 73), ("cluttered table", 83), ("cup on can", 3824),
+                                        ("can touching box", 4134)])
 def test_development_misses_are_found_where_they_stand(case, seed):
     """Every can of these generated scenes is found within 3 mm of its axis, on its support (base
     within 1 cm, height within 1.5 cm of the truth), and no other upright can is reported."""
