@@ -109,7 +109,10 @@ class CylinderSearchConfig:
     max_facet_ratio: a side seen over at least min_arc whose two halves both lie closer to a line
     than to the circle (rms, below this ratio: geometry.facet_ratio) is two flat faces, a box's
     corner the circle touches, not a can; a lying can's side whose whole arc does
-    (geometry.line_ratio) is one flat face.
+    (geometry.line_ratio) is one flat face. max_split_ratio: a side either half of which (each of
+    at least min_fit_points points) lies this many times closer (rms) to a circle of its own than to
+    the side's (geometry.split_ratio) is two round objects, the fronts of two touching cans a wider
+    circle is tangent to.
     lid_arc (rad): a can seen by its lid alone (its side hidden behind an object in front) shows the
     lid's rim over at least this on the half away from the sensor (_lid_only); lid_levels: the
     heights tried for such a lid, fullest first (a box beside it may have more points at its top's
@@ -158,6 +161,7 @@ class CylinderSearchConfig:
     max_taper: float = 0.07
     taper_sigmas: float = 3.0
     max_facet_ratio: float = 1.0
+    max_split_ratio: float = 2.0
     lid_arc: float = 2.5
     lid_levels: int = 2
     min_rim_side_arc: float = 0.3
@@ -604,6 +608,10 @@ def _judge_side(free, cx, cy, r, r_eps, cutoff, sigma, z_lo, z_hi, top, claim, c
     shape = g.shape_error(sxy, cx, cy, r, c.shape_bins)
     if shape > c.max_shape_error:
         return None, f"shape error {1e3 * shape:.2f} mm > {1e3 * c.max_shape_error:.2f} mm (not round)", None
+    split = g.split_ratio(sxy, cx, cy, r, c.min_fit_points)
+    if split > s.max_split_ratio:
+        return None, (f"two round objects: half of the side lies {split:.1f} times closer to a circle of its own "
+                      f"(max {s.max_split_ratio:.1f})"), None
     if fraction < c.min_inlier_fraction:
         # A round side with its inside seen (a cup's far wall) is a hollow object: named and claimed,
         # so the can it may stand on is looked for next.

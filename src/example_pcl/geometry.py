@@ -718,21 +718,46 @@ def line_ratio(xy, cx, cy, radius):
     return float(line / circle) if circle > 0 else float("inf")
 
 
+def _halves(xy, cx, cy):
+    """The points xy (float (N, 2), m) in two halves, split at the middle of the arc they span around
+    (cx, cy) (m): float64 (N1, 2), (N2, 2)."""
+    xy = np.asarray(xy, dtype=float)[:, :2]
+    angle = np.arctan2(xy[:, 1] - cy, xy[:, 0] - cx)
+    order, span = angular_order(angle)
+    along = (angle[order] - angle[order[0]]) % (2 * np.pi)
+    return xy[order][along < 0.5 * span], xy[order][along >= 0.5 * span]
+
+
 def facet_ratio(xy, cx, cy, radius):
     """How straight the two halves of an arc of points are (dimensionless): split at the middle of
     the arc they span around (cx, cy) (m), the larger over the halves of the rms distance to the
     half's own best line over the rms distance to the circle of `radius` (m). Above 1 when the
     circle's curvature shows through the noise; below 1 on both halves for two flat faces meeting
     at a corner (a box's) that a circle touches. NaN when a half holds fewer than 3 points."""
-    xy = np.asarray(xy, dtype=float)[:, :2]
-    angle = np.arctan2(xy[:, 1] - cy, xy[:, 0] - cx)
-    order, span = angular_order(angle)
-    along = (angle[order] - angle[order[0]]) % (2 * np.pi)
     ratio = 0.0
-    for half in (xy[order][along < 0.5 * span], xy[order][along >= 0.5 * span]):
+    for half in _halves(xy, cx, cy):
         if len(half) < 3:
             return float("nan")
         ratio = max(ratio, line_ratio(half, cx, cy, radius))
+    return float(ratio)
+
+
+def split_ratio(xy, cx, cy, radius, min_points=6):
+    """How much better each half of an arc of points (split as facet_ratio) is explained by a circle
+    of its own than by the circle of `radius` about (cx, cy) (m): the larger over the halves of the
+    rms distance to that circle over the rms distance to the half's own (Kasa) circle. About 1 for
+    one round object; well above 1 where the arc joins two (the fronts of two touching cans on a
+    wider circle tangent to both). NaN when a half holds fewer than min_points points."""
+    ratio = 0.0
+    for half in _halves(xy, cx, cy):
+        if len(half) < min_points:
+            return float("nan")
+        kx, ky, kr = (float(v[0]) for v in fit_circles_algebraic(half))
+        if not np.isfinite(kr):
+            continue  # a straight half: no circle of its own (facet_ratio's concern)
+        own = np.sqrt(np.mean((np.hypot(half[:, 0] - kx, half[:, 1] - ky) - kr) ** 2))
+        circle = np.sqrt(np.mean((np.hypot(half[:, 0] - cx, half[:, 1] - cy) - radius) ** 2))
+        ratio = max(ratio, circle / own if own > 0 else float("inf"))
     return float(ratio)
 
 
