@@ -246,7 +246,7 @@ def circle_hypotheses(xy, z, n, rng, min_radius, max_radius, slice_height, partn
     return cx[keep], cy[keep], r[keep], ((level[anchors[ok]] + 0.5) * slice_height)[keep]
 
 
-def flat_faces(xy, eps, min_span, min_points, rng, tries=32, max_faces=3, max_gap=0.02, radii=(0.015, 0.08)):
+def flat_faces(xy, eps, min_span, min_points, rng, tries=32, max_faces=3, max_gap=0.02, *, radii):
     """Which of the points xy (float64 (M, 2), m, seen from above) lie on a flat vertical face (a box's
     or prism's): within eps of a line, a run along it at least min_span (m) long with no gap over
     max_gap (m), of at least min_points points. Up to max_faces lines, each the best of `tries`

@@ -28,6 +28,7 @@ PROJECT = pathlib.Path(__file__).resolve().parents[2]
 OSD = PROJECT / ".." / "shared" / "data" / "osd"
 OBJECTS = PROJECT / "bench" / "osd_objects.json"
 CENTRE_TOLERANCE = 0.002  # m
+RADII = (af.AutoConfig().min_radius, af.AutoConfig().max_radius)  # a can's, m
 
 
 def search(objects, **camera):
@@ -73,7 +74,7 @@ def test_flat_faces_finds_a_box_face_and_not_a_can_side():
     angle = np.linspace(0.2, np.pi - 0.2, 60)
     side = np.c_[0.3 + 0.08 * np.cos(angle), -0.08 * np.sin(angle)] + rng.normal(0, 0.001, (60, 2))
     fronts = np.concatenate([np.c_[0.03 * np.cos(angle) + dx, -0.03 * np.sin(angle)] for dx in (-0.5, -0.44)])
-    found = cs.flat_faces(np.concatenate([face, side, fronts]), 0.003, 0.06, 12, rng)
+    found = cs.flat_faces(np.concatenate([face, side, fronts]), 0.003, 0.06, 12, rng, radii=RADII)
     assert found[:60].mean() > 0.9
     assert not found[60:].any()
 
@@ -87,13 +88,13 @@ def test_a_can_front_in_line_with_a_box_face_past_its_end_is_no_part_of_the_face
     face = np.c_[np.linspace(0.0, 0.08, 50), np.zeros(50)] + rng.normal(0, 0.0007, (50, 2))
     angle = np.linspace(-np.pi / 2 - 0.6, -np.pi / 2 + 0.6, 30)
     front = np.c_[0.096 + 0.029 * np.cos(angle) + 0.016, 0.029 + 0.029 * np.sin(angle)]
-    found = cs.flat_faces(np.concatenate([face, front]), 0.003, 0.06, 12, rng)
+    found = cs.flat_faces(np.concatenate([face, front]), 0.003, 0.06, 12, rng, radii=RADII)
     assert found[:50].mean() > 0.9
     assert not found[50:].any()
-    gapped = np.concatenate([face[face[:, 0] < 0.034], face[face[:, 0] > 0.046] + (0.0, 0.0)])
-    assert cs.flat_faces(gapped, 0.003, 0.06, 12, np.random.default_rng(5)).all()
+    gapped = np.concatenate([face[face[:, 0] < 0.034], face[face[:, 0] > 0.046]])
+    assert cs.flat_faces(gapped, 0.003, 0.06, 12, np.random.default_rng(5), radii=RADII).all()
     piece = np.c_[np.linspace(0.096, 0.126, 20), np.zeros(20)] + rng.normal(0, 0.0007, (20, 2))
-    assert cs.flat_faces(np.concatenate([face, piece]), 0.003, 0.06, 12, np.random.default_rng(5)).all()
+    assert cs.flat_faces(np.concatenate([face, piece]), 0.003, 0.06, 12, np.random.default_rng(5), radii=RADII).all()
 
 
 def test_the_last_draw_retries_a_circle_a_tried_one_took_out_but_none_like_one_tried():
