@@ -304,12 +304,13 @@ def _without_tangent_ends(run, along, lo, hi, min_span, gap, radii, min_points=6
         kx, ky, kr = (float(v[0]) for v in g.fit_circles_algebraic(piece))
         return bool(radii[0] <= kr <= radii[1] and g.line_ratio(piece, kx, ky, kr) >= min_bend)
 
-    if (len(breaks) and along[breaks[0]] - along[lo] < min_span and along[hi] - along[breaks[0] + 1] >= min_span
-            and bends(lo, breaks[0])):
-        lo = breaks[0] + 1
-    if (len(breaks) and along[hi] - along[breaks[-1] + 1] < min_span and along[breaks[-1]] - along[lo] >= min_span
-            and bends(breaks[-1] + 1, hi)):
-        hi = breaks[-1]
+    if not len(breaks):
+        return lo, hi
+    first, last = breaks[0], breaks[-1]
+    if along[first] - along[lo] < min_span and along[hi] - along[first + 1] >= min_span and bends(lo, first):
+        lo = first + 1
+    if along[hi] - along[last + 1] < min_span and along[last] - along[lo] >= min_span and bends(last + 1, hi):
+        hi = last
     return lo, hi
 
 

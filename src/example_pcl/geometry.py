@@ -702,6 +702,11 @@ def shape_error(xy, cx, cy, radius, bins):
     return float(np.sqrt(means @ means / bins))
 
 
+def circle_rms(xy, cx, cy, radius):
+    """RMS distance (m) of points xy (float (N, 2), m) to the circle of `radius` about (cx, cy) (m)."""
+    return np.sqrt(np.mean((np.hypot(xy[:, 0] - cx, xy[:, 1] - cy) - radius) ** 2))
+
+
 def line_ratio(xy, cx, cy, radius):
     """How much better the circle of `radius` about (cx, cy) (m) explains points (float (N, 2), m)
     than their own best line (dimensionless): the rms distance to that line over the rms distance
@@ -714,7 +719,7 @@ def line_ratio(xy, cx, cy, radius):
     # The smaller eigenvalue of the 2 x 2 covariance: the mean squared distance to the best line.
     a, b, c = np.mean(centred[:, 0] ** 2), np.mean(centred[:, 0] * centred[:, 1]), np.mean(centred[:, 1] ** 2)
     line = np.sqrt(max(0.5 * (a + c) - np.hypot(0.5 * (a - c), b), 0.0))
-    circle = np.sqrt(np.mean((np.hypot(xy[:, 0] - cx, xy[:, 1] - cy) - radius) ** 2))
+    circle = circle_rms(xy, cx, cy, radius)
     return float(line / circle) if circle > 0 else float("inf")
 
 
@@ -755,8 +760,7 @@ def split_ratio(xy, cx, cy, radius, min_points=6):
         kx, ky, kr = (float(v[0]) for v in fit_circles_algebraic(half))
         if not np.isfinite(kr):
             continue  # a straight half: no circle of its own (facet_ratio's concern)
-        own = np.sqrt(np.mean((np.hypot(half[:, 0] - kx, half[:, 1] - ky) - kr) ** 2))
-        circle = np.sqrt(np.mean((np.hypot(half[:, 0] - cx, half[:, 1] - cy) - radius) ** 2))
+        own, circle = circle_rms(half, kx, ky, kr), circle_rms(half, cx, cy, radius)
         ratio = max(ratio, circle / own if own > 0 else float("inf"))
     return float(ratio)
 
