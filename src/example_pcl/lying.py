@@ -662,9 +662,12 @@ def judge_lying(points, fit, r_eps, sigma, config, search, sensor=None, occluder
                       f"{s.max_facet_ratio:.2f}; a flat face)")
     arc = g.arc_coverage(section, fit.offset, fit.zc)
     min_arc = c.min_arc if min_arc is None else min_arc
-    # A can behind another, touching it, shows only the part of its side above the front one.
+    # A can behind another, touching it, shows only the part of its side above the front one. What is
+    # seen of it counts up to its ends: past the front can's end, its side may show lower within the
+    # end's slab only (fresh 4535 of "lying cans touching").
+    seen = (np.abs(rho - r) <= r_eps) & mine & (axial >= a_lo) & (axial <= a_hi)
     if arc < min_arc and not (arc >= s.min_occluded_arc and occluders is not None and sensor is not None
-                              and _rest_hidden(fit, lateral[side], z[side], a_lo, a_hi, r_eps, sensor, occluders)):
+                              and _rest_hidden(fit, lateral[seen], z[seen], a_lo, a_hi, r_eps, sensor, occluders)):
         return None, f"lying: side seen over {arc:.2f} rad < {min_arc:.2f} rad"
     length = float(a_hi - a_lo)
     if length < c.min_can_height:

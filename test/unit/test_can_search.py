@@ -625,7 +625,8 @@ def test_generated_lying_cans_touching_are_found(case, seed):
                                         ("lying cans touching", 1007), ("lying can touching box", 601),
                                         ("lying can touching box", 803), ("lying can touching box", 1209),
                                         ("cluttered table", 1602), ("lying can touching box", 3514),
-                                        ("cluttered table", 54), ("lying can touching box", 3834)])
+                                        ("cluttered table", 54), ("lying can touching box", 3834),
+                                        ("lying cans touching", 4535)])
 def test_held_out_lying_misses_are_found_where_they_lie(case, seed):
     """Held-out seeds looked at since. 1000: a lying can whose end touches a box was found 3.4 cm short
     (every 7th point of the cluster, the fit's sample, left two bands next to the box with two points
@@ -651,6 +652,9 @@ def test_held_out_lying_misses_are_found_where_they_lie(case, seed):
     circle against 2.3 for the rest of the run, whose band at the other end (the end's disc's rim)
     scatters as much: the run went on over the box, 48 mm too long (the rest is judged without that
     band now: lying._without_flat_end).
+    4535 (fresh): a lying can behind another, seen over 1.20 rad above it; past the front can's end its
+    side shows lower, but only within the slab of r_eps at its own end, which the side leaves out, and
+    its rest there was taken for unhidden (what is seen counts up to its ends now).
     Each found as in test_generated_lying_cans_touching_are_found, a can behind another's radius
     within 2 mm (its circle seen over so short an arc is less sure)."""
     assert_generated_lying_cans_found(case, seed, radius_tolerance=0.002)
