@@ -1323,6 +1323,7 @@ def _lid_at(free, band, level, sigma, r_eps, ctx):
         if pinned is None and not _lid_rim(rim, lid, sigma, r_eps, ctx, shaded=True):
             return None
         rim = rim if pinned is None else pinned
+    rim = _clear_of_found(rim, lid, r_eps, ctx)
     cx, cy, r, far = rim.cx, rim.cy, rim.radius, rim.outline
     if _top_of_claimed(cx, cy, r, z_lid, r_eps, ctx):
         return None
@@ -1369,6 +1370,23 @@ def _lid_at(free, band, level, sigma, r_eps, ctx):
                indices=mine, support="table", base_seen=False, support_height=0.0)
 
 
+def _clear_of_found(rim, lid, r_eps, ctx):
+    """A lid's rim (geometry.RimCircle), refitted touching the upright can found that its circle
+    overlaps most (RimCircle.touching), if it does, when that still holds the lid (its points, float
+    (N, 3), plane frame, m; _holds_lid, r_eps in m) with a can's radius; else as it is."""
+    c = ctx.config
+    overlaps = [(rim.radius + o.radius - np.hypot(*(o.center_plane - (rim.cx, rim.cy))), o)
+                for o in ctx.found if not o.lying]
+    depth, other = max(overlaps, key=lambda overlap: overlap[0], default=(0.0, None))
+    if depth <= 0.0:
+        return rim
+    moved = rim.touching((*other.center_plane, other.radius))
+    if (moved is None or not c.min_radius <= moved.radius <= c.max_radius
+            or not _holds_lid(lid, moved.cx, moved.cy, moved.radius, r_eps)):
+        return rim
+    return moved
+
+
 def _rim_pinned_by_side(rim, pts, z_lid, lid, sigma, r_eps, ctx):
     """A lid's rim (geometry.RimCircle) refitted with the stripe of side under it and judged with it
     (_rim_with_side, the side counting toward its arc), or None: the side's points among pts (float
@@ -1388,11 +1406,13 @@ def _rim_pinned_by_side(rim, pts, z_lid, lid, sigma, r_eps, ctx):
 def _lid_rim(rim, lid, sigma, r_eps, ctx, beside=None, shaded=False):
     """Whether a RimCircle is a can's lid's (_lid_only): a can's radius, round (facet_ratio), rms
     within max(2 mm, 2 sigma) over at least lid_arc, holding 95 % of the lid's points (float (N, 3),
-    plane frame, m), and no can found there (overlapping one by more than r_eps, m: two touching
-    cans' circles overlap by their fits' errors). beside: the stripe of side (float (M, 2), m) the rim
-    was refitted with: a rim seen over min_hidden_arc will do when both span min_arc, as a side must
-    (the lid of a can behind a taller one, cut short by its shadow: "cans touching" 5, its rim over
-    1.2 rad, 2.25 with the side), and its rms may reach a sample spacing (RimCircle.fits, pinned).
+    plane frame, m), and no can found there (its outline's circle, the rim less half the sample
+    spacing, overlapping one by more than r_eps, m: two touching cans' circles overlap by their fits'
+    errors, and a rim cut short comes out too wide: fresh 4536 of "cans touching"). beside: the
+    stripe of side (float (M, 2), m) the rim was refitted with: a rim seen over min_hidden_arc will do
+    when both span min_arc, as a side must (the lid of a can behind a taller one, cut short by its
+    shadow: "cans touching" 5, its rim over 1.2 rad, 2.25 with the side), and its rms may reach a
+    sample spacing (RimCircle.fits, pinned).
     shaded: over min_arc will do when an object in front stands higher than the lid, whose shadow may
     cut it short (fresh 4121 of "cans touching": a rim over 2.43 rad, no side seen)."""
     c, s = ctx.config, ctx.search
@@ -1409,7 +1429,8 @@ def _lid_rim(rim, lid, sigma, r_eps, ctx, beside=None, shaded=False):
     return (c.min_radius <= r <= c.max_radius and rim.fits(sigma, min_rim_arc, pinned)
             and g.facet_ratio(rim.outline[rim.kept], cx, cy, rim.outline_radius) >= s.max_facet_ratio
             and _holds_lid(lid, cx, cy, r, r_eps)
-            and not any(not other.lying and np.hypot(*(other.center_plane - (cx, cy))) < r + other.radius - r_eps
+            and not any(not other.lying
+                        and np.hypot(*(other.center_plane - (cx, cy))) < rim.outline_radius + other.radius - r_eps
                         for other in ctx.found))
 
 

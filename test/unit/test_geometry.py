@@ -902,6 +902,42 @@ def test_rim_refitted_with_a_stripe_of_side_pins_the_circle():
     assert (joint.outline is rim.outline) and joint.spacing == spacing
 
 
+def test_a_circle_touching_another_is_fitted_on_the_others_side_where_its_arc_lies():
+    """Points on the far 1.6 rad of a circle (r 32 mm) that touches a wider one (r 45 mm) from outside:
+    fit_circle_touching from a start 4 mm off and 3 mm wide lands on it within 0.01 mm, its centre
+    its radius plus the other's from the other's; noisy (0.8 mm), it stays within 0.5 mm where the
+    free fit of the arc (fit_circle_algebraic) lands 2.8 mm off; with a gap, that much farther out."""
+    r, other = 0.032, (0.0, 0.0, 0.045)
+    centre = np.array([0.06, 0.05]) * (0.045 + r) / np.hypot(0.06, 0.05)
+    angle = np.arctan2(centre[1], centre[0]) + np.linspace(-0.8, 0.8, 14)
+    arc = centre + r * np.c_[np.cos(angle), np.sin(angle)]
+    cx, cy, radius = g.fit_circle_touching(arc, centre + (0.003, -0.003), r + 0.003, other)
+    assert np.hypot(cx - centre[0], cy - centre[1]) < 1e-5 and radius == pytest.approx(r, abs=1e-5)
+    assert np.hypot(cx, cy) == pytest.approx(radius + 0.045, abs=1e-9)
+    noisy = arc + np.random.default_rng(4).normal(0.0, 0.0008, arc.shape)
+    cx, cy, radius = g.fit_circle_touching(noisy, centre + (0.003, -0.003), r + 0.003, other)
+    assert np.hypot(cx - centre[0], cy - centre[1]) < 0.0005 and radius == pytest.approx(r, abs=0.0005)
+    free = g.fit_circle_algebraic(noisy)
+    assert np.hypot(free[0] - centre[0], free[1] - centre[1]) > 0.002
+    cx, cy, radius = g.fit_circle_touching(arc, centre, r, other, gap=0.002)
+    assert np.hypot(cx, cy) == pytest.approx(radius + 0.047, abs=1e-9)
+
+
+def test_a_rim_refitted_touching_the_can_in_front_keeps_its_outline():
+    """A lid cut short by a can in front (its far arc, outline samples half a spacing inside the rim),
+    its circle fitted 3 mm too wide and overlapping that can (fresh 4536 of "cans touching"): touching
+    it, the rim is the can's within 0.5 mm, with the same outline and residuals measured from it."""
+    r, spacing, front = 0.032, 0.004, (0.0, 0.0, 0.045)
+    centre = np.array([0.0, 0.045 + r])
+    angle = np.pi / 2 + np.linspace(-1.0, 1.0, 12)
+    outline = centre + (r - 0.5 * spacing) * np.c_[np.cos(angle), np.sin(angle)]
+    wide = g.RimCircle(0.0, centre[1] - 0.004, r + 0.003, outline, np.zeros(12), spacing, 0.006)
+    rim = wide.touching(front)
+    assert np.hypot(rim.cx - centre[0], rim.cy - centre[1]) < 0.0005 and rim.radius == pytest.approx(r, abs=0.0005)
+    assert rim.outline is outline and rim.spacing == spacing
+    assert_allclose(rim.residual, np.hypot(*(outline - (rim.cx, rim.cy)).T) - rim.outline_radius, atol=1e-12)
+
+
 def test_rim_rms_leaves_out_the_ends_where_the_lid_is_cut_short_and_no_more():
     """The rim's rms leaves out up to two outline samples more than r_eps inside the circle: one 11 mm
     inside (where a can in front cuts the lid short, held-out 1309 of "cans touching") does not count;
