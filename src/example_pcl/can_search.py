@@ -911,12 +911,14 @@ def _support(points, cx, cy, r, base, r_eps, sigma, ctx):
         if (not other.lying and np.hypot(cx - other.center_plane[0], cy - other.center_plane[1]) < other.radius
                 and base - 0.025 - 3 * sigma <= top <= base + 0.005):
             return "can", True, top, ""
-    # Something in front, as high as the lowest point seen: the base is hidden behind it.
+    # Something in front, as high as the lowest point seen: the base is hidden behind it. Beyond r_eps: its
+    # own front's noise is nothing in front of it (fresh 4630 of "cup on can": a cup on a can stood on the
+    # table behind itself, and its claim took the can).
     st = ctx.standing
     srel = st[:, :2] - (cx, cy)
     sahead = srel @ front
     lateral = np.abs(srel[:, 0] * front[1] - srel[:, 1] * front[0])
-    occluder = (sahead > r) & (sahead < r + s.occluder_reach) & (lateral < r) & (st[:, 2] >= base - 0.02)
+    occluder = (sahead > r + r_eps) & (sahead < r + s.occluder_reach) & (lateral < r) & (st[:, 2] >= base - 0.02)
     if occluder.sum() >= s.min_band_points:
         return "table", False, 0.0, ""
     if base <= c.min_height + c.max_base_gap:
