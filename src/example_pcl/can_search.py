@@ -1067,13 +1067,14 @@ def _handle(points, cx, cy, dist, r, r_eps, base, top, ctx):
     if (out & span & ((z <= base + 0.01) | (z >= top + 0.005))).any() or (beyond & span).sum() >= s.min_handle_points:
         return ""  # it reaches the support, the top or further out: another object touching it
     # A box's face touching the can runs on beyond handle_reach, seen from above, at any angle to the
-    # radius (outside the arc when it is nearly tangent); a handle ends there.
+    # radius (outside the arc when it is nearly tangent); a handle ends there. So does a prism's top
+    # beyond its edge seen beside the can, which may lie well within the reach, the rest of the edge
+    # hidden (fresh 4605 of "cluttered table"): followed from point to point within 2 r_eps outside the
+    # side.
+    if beyond.any() and np.count_nonzero(_reached(around, mid, out | beyond, 2 * r_eps) & beyond) \
+            >= s.min_handle_points:
+        return ""
     outer = mid & (dist > r + s.handle_reach - 2 * r_eps)
-    if outer.any() and beyond.any():
-        bx, by, ox, oy = around[beyond, 0], around[beyond, 1], around[outer, 0], around[outer, 1]
-        gap = np.hypot(bx[:, None] - ox[None, :], by[:, None] - oy[None, :])
-        if np.count_nonzero(gap.min(axis=1) <= 2 * r_eps) >= s.min_handle_points:
-            return ""
     # Where its outer end lies behind something nearer the sensor (not the can, not itself), it may
     # go on: a cup touching the can, seen in the gap between it and a can in front ("cluttered
     # table", development seed 14), is no handle.
@@ -1086,6 +1087,22 @@ def _handle(points, cx, cy, dist, r, r_eps, base, top, ctx):
             return ""
     return (f"handle: {int(mid.sum())} points stick out of the side over {arc:.2f} rad without reaching the "
             "support (a mug)")
+
+
+def _reached(points, start, allowed, step):
+    """Which points (float (N, 2+), m) are reached from those of `start` (bool (N,)) going from point
+    to point among the `allowed` ones (bool (N,)) no more than `step` (m) apart seen from above."""
+    reached = start & allowed
+    tree = cKDTree(points[allowed, :2])
+    index = np.flatnonzero(allowed)
+    frontier = points[reached, :2]
+    while len(frontier):
+        # Each frontier point finds itself at least: no empty list.
+        hits = np.unique(np.concatenate(list(tree.query_ball_point(frontier, step))).astype(np.int64))
+        new = index[hits[~reached[index[hits]]]]
+        reached[new] = True
+        frontier = points[new, :2]
+    return reached
 
 
 def _wall_sample(points, n, cell, rng):
