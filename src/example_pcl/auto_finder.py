@@ -365,8 +365,10 @@ def _search_cylinders(pts, T, viewpoint, config):
     standing = _native.extract(in_plane, standing_idx)
     t2 = time.perf_counter()
     points = [_native.extract(in_plane, idx).astype(float) for idx in clusters]
+    box = g.image_box(grid[..., 2]) if grid.ndim == 3 else None
+    edge = None if box is None else standing[g.on_image_edge(standing_idx, grid.shape[1], box)].astype(float)
     found, rejections = can_search.search(points, standing, T, sensor_plane, config,
-                                          ray_angle=g.ray_angle(grid, viewpoint))
+                                          ray_angle=g.ray_angle(grid, viewpoint), image_edge=edge)
     found = [(k, _with_hidden_ends(can, in_plane, standing_idx, clusters[k], T_plane_from_sensor, sensor_plane,
                                    config) if can.lying else can) for k, can in found]
     cans = [dataclasses.replace(can, indices=_grid_indices(clusters[k][can.indices], in_plane.shape[:-1],

@@ -27,7 +27,8 @@ and measured figures are in docs/can_search.md; in short, per cluster and round:
    Else a surface at the base's height around the can, beside or behind its front (a tin's lid,
    a box's top): on that object (``support`` "object", or "can" when it is a can found
    below), base at that height. Else an object in front reaching up to the lowest visible
-   point: base hidden, inferred on the table (``base_seen`` False). Else it floats: rejected.
+   point, or the image's edge cutting off the side's lowest points: base hidden, inferred on the
+   table (``base_seen`` False). Else it floats: rejected.
 5. **Not a can.** Open top: points within the circle on its far half (away from the sensor) below
    the rim, or inside the disc well below the rim - the inside of a hollow cylinder, so a cup,
    mug, bowl or pot. Handle: points just outside the circle within the can's height, on a narrow
@@ -394,6 +395,8 @@ class _Context:
     found: list  # the Cans found so far (supports for stacked cans)
     ray_angle: float = 0.0  # rad: between the rays of neighbouring grid pixels (0: not known)
     claimed: list = field(default_factory=list)  # _Claim: the round objects claimed as no can
+    # float64 (E, 3): the standing points on the image's edge (the view ends beyond them; plane frame, m)
+    image_edge: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
 
 
 class _Free:
@@ -920,6 +923,12 @@ def _support(points, cx, cy, r, base, r_eps, sigma, ctx):
     lateral = np.abs(srel[:, 0] * front[1] - srel[:, 1] * front[0])
     occluder = (sahead > r + r_eps) & (sahead < r + s.occluder_reach) & (lateral < r) & (st[:, 2] >= base - 0.02)
     if occluder.sum() >= s.min_band_points:
+        return "table", False, 0.0, ""
+    # Its lowest side points on the image's edge: the view ends there, the side goes on below unseen.
+    edge = ctx.image_edge
+    cut = ((np.abs(np.hypot(edge[:, 0] - cx, edge[:, 1] - cy) - r) <= 2 * r_eps)
+           & (edge[:, 2] <= base + s.band_height))
+    if np.count_nonzero(cut) >= s.min_band_points:
         return "table", False, 0.0, ""
     if base <= c.min_height + c.max_base_gap:
         return "table", True, 0.0, ""
@@ -1522,7 +1531,7 @@ def _lying_result(found, rest, ctx):
                support_height=0.0, lying=True)
 
 
-def search(clusters, standing, T_sensor_from_plane, sensor_plane, config, ray_angle=0.0):
+def search(clusters, standing, T_sensor_from_plane, sensor_plane, config, ray_angle=0.0, image_edge=None):
     """Every can in the clusters: (list of (cluster number, Can)), list of (cluster number,
     Rejection)), each Can's indices into that cluster's points.
 
@@ -1531,13 +1540,16 @@ def search(clusters, standing, T_sensor_from_plane, sensor_plane, config, ray_an
     T_sensor_from_plane: 4x4, the plane frame in the sensor frame (the Cans' poses are in the sensor
     frame); sensor_plane: the sensor in the plane frame (m); config: auto_finder.AutoConfig (the
     band, fit and criterion; its .cylinders the CylinderSearchConfig); ray_angle (rad): between
-    the rays of neighbouring points of the grid searched (geometry.ray_angle; 0: not known)."""
+    the rays of neighbouring points of the grid searched (geometry.ray_angle; 0: not known);
+    image_edge: float64 (E, 3), the standing points on the image's edge (a can's base below them is
+    out of view; None: no image)."""
     s = config.cylinders
     s.validate()
     ctx = _Context(config=config, search=s, T_sensor_from_plane=np.asarray(T_sensor_from_plane, dtype=float),
                    sensor=np.asarray(sensor_plane, dtype=float),
                    standing=np.asarray(standing, dtype=float), rng=np.random.default_rng(s.seed), found=[],
-                   ray_angle=float(ray_angle))
+                   ray_angle=float(ray_angle),
+                   image_edge=np.zeros((0, 3)) if image_edge is None else np.asarray(image_edge, dtype=float))
     cans, rejections = [], []
     # Lowest clusters first is not needed: a stacked can's support is in its own cluster.
     for k, points in enumerate(clusters):
