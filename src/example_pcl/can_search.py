@@ -117,7 +117,8 @@ class CylinderSearchConfig:
     lid_arc (rad): a can seen by its lid alone (its side hidden behind an object in front) shows the
     lid's rim over at least this on the half away from the sensor (_lid_only); lid_levels: the
     heights tried for such a lid, fullest first (a box beside it may have more points at its top's
-    height); min_rim_side_arc (rad):
+    height); max_lid_rectangularity: a lid whose points' convex hull fills more of its smallest
+    enclosing rectangle (geometry.rectangularity: pi / 4 for a disc) is a box's top; min_rim_side_arc (rad):
     its side seen lower, a stripe of it over at least this, on the rim's circle, is a can's side when
     the rest of its near half is hidden (verify, rim=True).
     lying_gap (m), lying_directions: lying cans are looked for in each cluster and in what the upright
@@ -165,6 +166,7 @@ class CylinderSearchConfig:
     max_split_ratio: float = 2.0
     lid_arc: float = 2.5
     lid_levels: int = 2
+    max_lid_rectangularity: float = 0.9
     min_rim_side_arc: float = 0.3
     lying_gap: float = 0.01
     lying_directions: int = 36
@@ -1350,6 +1352,11 @@ def _lid_at(free, band, level, sigma, r_eps, ctx):
     lid = _bare_lid(pts, z_lid, sigma, s.band_height)
     # Wider than a can seen from above (a tin's, a box's top): no lid of one.
     if len(lid) < c.min_fit_points or np.any(np.ptp(lid[:, :2], axis=0) > 2 * (c.max_radius + r_eps)):
+        return None
+    # A box's top fills its rectangle; a lid, even cut short by a straight shadow, fills less (fresh 5048
+    # of "cluttered table": a 46 x 42 mm box's top behind a taller mug, its rim rms 2.9 mm at 1.2 m, 0.94;
+    # the 10 lids alone on "cans touching" and "cluttered table" 0-99: 0.79-0.84).
+    if g.rectangularity(lid[:, :2]) > s.max_lid_rectangularity:
         return None
     rim = g.rim_circle(lid, ctx.sensor[:2], r_eps)
     if rim is None or len(rim.outline) < c.shape_bins:

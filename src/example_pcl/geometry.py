@@ -748,6 +748,28 @@ def facet_ratio(xy, cx, cy, radius):
     return float(ratio)
 
 
+def rectangularity(xy):
+    """How much of its smallest enclosing rectangle the convex hull of points (float (N, 2), m) fills
+    (dimensionless): pi / 4 for a disc (a can's lid), up to about 0.85 for a disc a straight edge cuts
+    short, 1 for a rectangle (a box's top). NaN for fewer than 3 points or a degenerate hull. The
+    smallest rectangle has a side along a hull edge (rotating calipers)."""
+    from scipy.spatial import ConvexHull, QhullError
+
+    xy = np.asarray(xy, dtype=float)
+    if len(xy) < 3:
+        return float("nan")
+    try:
+        hull = ConvexHull(xy)
+    except QhullError:
+        return float("nan")
+    corners = xy[hull.vertices]
+    edges = np.diff(np.vstack([corners, corners[:1]]), axis=0)
+    u = edges / np.linalg.norm(edges, axis=1, keepdims=True)
+    along, across = corners @ u.T, corners @ np.column_stack([-u[:, 1], u[:, 0]]).T
+    smallest = float(np.min(np.ptp(along, axis=0) * np.ptp(across, axis=0)))
+    return float(hull.volume / smallest) if smallest > 0 else float("nan")
+
+
 def split_ratio(xy, cx, cy, radius, min_points=6):
     """How much better each half of an arc of points (split as facet_ratio) is explained by a circle
     of its own than by the circle of `radius` about (cx, cy) (m): the larger over the halves of the

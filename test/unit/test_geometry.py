@@ -788,6 +788,23 @@ def test_behind_needs_an_occluder_on_the_ray_and_nearer():
     assert_array_equal(g.behind(places, np.empty((0, 3)), sensor), [False, False])
 
 
+def test_rectangularity_tells_a_boxs_top_from_a_lid():
+    """Points on a lid (a disc of r 30 mm, 3 mm apart) fill pi / 4 of their smallest rectangle, cut
+    short by a straight edge about 0.85 at most; a 46 x 42 mm box's top, turned by 0.7 rad, nearly all
+    of it; fewer than 3 points or points on a line: NaN."""
+    step = 0.003
+    grid = np.mgrid[-0.03:0.0301:step, -0.03:0.0301:step].reshape(2, -1).T
+    disc = grid[np.hypot(grid[:, 0], grid[:, 1]) <= 0.03]
+    assert abs(g.rectangularity(disc) - np.pi / 4) < 0.05
+    for cut in (-0.015, 0.0, 0.015):
+        assert g.rectangularity(disc[disc[:, 1] <= cut]) < 0.88, cut
+    top = np.mgrid[-0.023:0.0231:step, -0.021:0.0211:step].reshape(2, -1).T
+    turn = np.array([[np.cos(0.7), -np.sin(0.7)], [np.sin(0.7), np.cos(0.7)]])
+    assert g.rectangularity(top @ turn.T + (0.2, 0.1)) > 0.95
+    assert np.isnan(g.rectangularity(disc[:2]))
+    assert np.isnan(g.rectangularity(np.c_[np.arange(5.0), 2 * np.arange(5.0)]))
+
+
 def test_facet_ratio_tells_a_corner_from_an_arc():
     """Noisy points over 2.4 rad of a circle: both halves curve (ratio above 1); the two faces of a
     square's corner that the circle touches: both halves straight (below 1); too few points: NaN."""
