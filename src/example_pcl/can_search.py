@@ -792,10 +792,11 @@ def _lid(dist, z, r, r_eps, z_lo, z_hi, s, fitted=False):
     # Not inside a hypothesis' circle: a taller box touching the can may lie there (held-out 1500 of "can
     # touching box": 10 mm low). Standing: spanning 2 bands, not an open mug's far rim above a run cut
     # short (the real learn33 with a fifth of its pixels dropped: a can).
-    on_lid = (dist < r - r_eps) & (z >= z_hi + 2 * s.band_height) & fitted
-    if (np.count_nonzero(on_lid) >= s.min_band_points
-            and _percentile(z[on_lid], 95) - _percentile(z[on_lid], 5) >= 2 * s.band_height):
-        ring &= dist >= _percentile(dist[on_lid], 95) + 0.5 * r_eps
+    if fitted:
+        on_lid = (dist < r - r_eps) & (z >= z_hi + 2 * s.band_height)
+        if (np.count_nonzero(on_lid) >= s.min_band_points
+                and _percentile(z[on_lid], 95) - _percentile(z[on_lid], 5) >= 2 * s.band_height):
+            ring &= dist >= _percentile(dist[on_lid], 95) + 0.5 * r_eps
     return _percentile(z[ring if np.count_nonzero(ring) >= s.min_band_points else lid], 99)
 
 

@@ -16,6 +16,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial import ConvexHull, QhullError
 
 from example_pcl import _native
 from example_pcl import transforms
@@ -753,8 +754,6 @@ def rectangularity(xy):
     (dimensionless): pi / 4 for a disc (a can's lid), up to about 0.85 for a disc a straight edge cuts
     short, 1 for a rectangle (a box's top). NaN for fewer than 3 points or a degenerate hull. The
     smallest rectangle has a side along a hull edge (rotating calipers)."""
-    from scipy.spatial import ConvexHull, QhullError
-
     xy = np.asarray(xy, dtype=float)
     if len(xy) < 3:
         return float("nan")
