@@ -948,10 +948,10 @@ def fit_circles_algebraic(xy, weights=None):
     features[0], features[1], features[2], features[3], features[4] = 1.0, u, v, u * u, u * v
     features[5], features[6], features[7], features[8] = v * v, u * s, v * s, s
     if weights is None:
-        sums = features.sum(axis=1)[:, None]
-    else:
-        sums = features @ np.atleast_2d(np.asarray(weights, dtype=float)).T
-    a, b, r = kasa_from_sums(*sums)
+        # One circle: the closed form on Python floats, without NumPy's per-call cost on 1-element arrays.
+        a, b, r = kasa_from_sums(*features.sum(axis=1).tolist())
+        return np.array([a + mean[0]]), np.array([b + mean[1]]), np.array([r])
+    a, b, r = kasa_from_sums(*(features @ np.atleast_2d(np.asarray(weights, dtype=float)).T))
     return a + mean[0], b + mean[1], r
 
 

@@ -59,19 +59,30 @@ class LyingFit:
         return np.array([xy[0], xy[1], self.zc])
 
 
-def _kasa(lateral, z, weights):
-    """Kasa circles of the points (lateral[d], z) per direction d and subset k: lateral float64 (D, N),
-    z (N,), weights (K, N) 0/1 masks. Returns (c_l, c_z, r), each (K, D); NaN for a subset of fewer
-    than 3 points or (nearly) collinear ones. One product for all subsets and directions."""
-    d, n = lateral.shape
-    lm, zm = lateral.mean(axis=1, keepdims=True), z.mean()
-    u, v = lateral - lm, z - zm  # centred, for precision
-    s = u * u + v * v
-    w = np.asarray(weights, dtype=float)
-    su, suu, suv, sus, svs, ss = np.einsum("kn,fdn->fkd", w, np.stack([u, u * u, u * v, u * s, v * s, s]))
-    sv, svv, count = np.einsum("kn,fn->fk", w, np.stack([v, v * v, np.ones(n)]))[:, :, None]
-    cu, cv, r = g.kasa_from_sums(count, su, sv, suu, suv, svv, sus, svs, ss)
-    return cu + lm[:, 0], cv + zm, r
+def _kasa(q, z, theta, weights):
+    """Kasa circles of the points (lateral, z) per direction theta[d] (rad; lateral: q's coordinate
+    across it, q float64 (N, 2), m) and subset k (weights (K, N) 0/1 masks, z (N,), m). Returns (c_l,
+    c_z, r), each (K, D); NaN for a subset of fewer than 3 points or (nearly) collinear ones.
+
+    A direction's sums (of u, u^2, uv, u s, v s; u = lateral, v = z, centred; s = u^2 + v^2) are
+    polynomials in its sine and cosine whose coefficients are the subset's moments of x, y and v up
+    to the third order: one product over the points for all directions, not one per direction."""
+    x, y = q[:, 0] - q[:, 0].mean(), q[:, 1] - q[:, 1].mean()  # centred, for precision
+    zm = z.mean()
+    v = z - zm
+    xx, xy, yy, vv = x * x, x * y, y * y, v * v
+    moments = np.einsum("kn,fn->fk", np.asarray(weights, dtype=float),
+                        np.stack([np.ones(len(x)), x, y, v, xx, xy, yy, x * v, y * v, vv, xx * x, xx * y, xy * y,
+                                  yy * y, x * vv, y * vv, xx * v, xy * v, yy * v, vv * v]))[:, :, None]  # (20, K, 1)
+    count, mx, my, mv, mxx, mxy, myy, mxv, myv, mvv, mxxx, mxxy, mxyy, myyy, mxvv, myvv, mxxv, mxyv, myyv, mvvv = moments
+    a, b = -np.sin(theta), np.cos(theta)  # lateral = a x + b y
+    aa, ab, bb = a * a, a * b, b * b
+    su, suu, suv = a * mx + b * my, aa * mxx + 2 * ab * mxy + bb * myy, a * mxv + b * myv
+    sus = aa * a * mxxx + 3 * aa * b * mxxy + 3 * a * bb * mxyy + bb * b * myyy + a * mxvv + b * myvv
+    svs = aa * mxxv + 2 * ab * mxyv + bb * myyv + mvvv
+    cu, cv, r = g.kasa_from_sums(count, su, mv, suu, suv, mvv, sus, svs, suu + mvv)
+    lm = a * q[:, 0].mean() + b * q[:, 1].mean()
+    return cu + lm, cv + zm, r
 
 
 def _subsets(xy, radius, seeds):
@@ -100,17 +111,18 @@ def _distinct(members, score, count, max_overlap=0.5, scan=64):
     order = [int(h) for h in np.argsort(-score, kind="stable")[:scan] if score[h] > 0]
     if not order:
         return []
-    # Every pair's shared points at once (one product), then the greedy choice on them.
-    chosen = members[order].astype(float)
-    shared = chosen @ chosen.T
-    size = np.diagonal(shared)
-    taken = []
+    chosen = members[order]
+    size = np.count_nonzero(chosen, axis=1)
+    # Each hypothesis taken shares points with every other one: counted once it is taken (at most
+    # `count` times), not for every pair (a matrix product, slow on the reference BLAS).
+    taken, shared = [], []
     for i in range(len(order)):
         if len(taken) == count:
             break
-        if size[i] < 3 or any(shared[i, j] > max_overlap * min(size[j], size[i]) for j in taken):
+        if size[i] < 3 or any(with_j[i] > max_overlap * min(size[j], size[i]) for j, with_j in zip(taken, shared)):
             continue
         taken.append(i)
+        shared.append(np.count_nonzero(chosen & chosen[i], axis=1))
     return [order[i] for i in taken]
 
 
@@ -146,7 +158,7 @@ def fit_lying_cylinders(points, r_eps, min_radius, max_radius, max_gap, directio
     theta = np.arange(directions) * np.pi / directions
     lateral = -q[:, 0][None, :] * np.sin(theta)[:, None] + q[:, 1][None, :] * np.cos(theta)[:, None]
     subsets = _subsets(q, subset_radius, seeds=8)
-    cl, cz, r = _kasa(lateral, z, subsets)  # (K, D) each
+    cl, cz, r = _kasa(q, z, theta, subsets)  # (K, D) each
     # Only circles of about a can's radius that about touch the table are scored and refined. Kasa fits a
     # partial arc too small, floating above the table; one reaching under it is no can's (and a
     # failed hypothesis still hides its duplicates).

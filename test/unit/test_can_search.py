@@ -1172,6 +1172,29 @@ def test_batched_algebraic_circles_match_the_one_at_a_time_fit():
     np.testing.assert_allclose(batched, [g.fit_circle_algebraic(xy[m]) for m in masks], atol=1e-9)
     line = np.c_[np.arange(5.0), 2 * np.arange(5.0)]
     assert np.isnan(g.fit_circles_algebraic(line)[2][0])
+    # One circle (no masks) is the same fit as one mask of every point.
+    np.testing.assert_allclose(np.ravel(g.fit_circles_algebraic(xy)),
+                               np.ravel(g.fit_circles_algebraic(xy, np.ones((1, 300), bool))), atol=1e-12)
+
+
+def test_lying_circles_from_moments_match_each_direction_fitted_alone():
+    """The lying search's Kasa circles of every direction and subset, from the subsets' moments
+    (lying._kasa), are fit_circles_algebraic of the points projected across each direction."""
+    from example_pcl import geometry as g
+
+    rng = np.random.default_rng(7)
+    along, angle = rng.uniform(0.0, 0.12, 250), rng.uniform(0.3, 2.8, 250)
+    # A lying can of r 33 mm along 0.5 rad, far from the origin, seen with 1 mm noise.
+    q = np.c_[along, 0.033 * np.cos(angle)] @ [[np.cos(0.5), np.sin(0.5)], [-np.sin(0.5), np.cos(0.5)]]
+    q += np.array([0.8, -0.3]) + rng.normal(0.0, 0.001, (250, 2))
+    z = 0.033 + 0.033 * np.sin(angle) + rng.normal(0.0, 0.001, 250)
+    theta = np.arange(36) * np.pi / 36
+    masks = np.vstack([np.ones(250, bool), rng.random((4, 250)) < 0.5])
+    cl, cz, r = lying._kasa(q, z, theta, masks)
+    for d, t in enumerate(theta):
+        lateral = -q[:, 0] * np.sin(t) + q[:, 1] * np.cos(t)
+        alone = np.array(g.fit_circles_algebraic(np.c_[lateral, z], masks))
+        np.testing.assert_allclose(np.c_[cl[:, d], cz[:, d], r[:, d]], alone.T, atol=1e-9)
 
 
 def test_lean_circle_fit_matches_fit_cylinder():
