@@ -1207,6 +1207,58 @@ def search_cluster(points, ctx):
         cans.append(can)
         ctx.found.append(can)
         free[can.indices] = False
+    last = _rounds(points, bands, free, cans, rejections, ctx)
+    if len(cans) > len(lying_cans) or (rejections and not lying_cans):
+        # Upright cans found: the lying cans are looked for again without them. A lying can beside one
+        # may stand out only now, and one found before may have taken a neighbour's side at its end for
+        # its end's disc (too long). So too when no lying can was found and the rounds claimed round
+        # objects that are no can (the rejections so far): beside a big one (a tin of r 99 mm) a lying can
+        # has too few of the lying search's subsampled points for its circles to outrank the tin's (fresh
+        # seed 2003 of "cluttered table").
+        for can in lying_cans:
+            free[can.indices] = True
+        # Nor the points just around an upright can that its own points leave (its side's noise, the
+        # points a sensor interpolates between it and a lying can's end).
+        near_upright = np.zeros(len(points), bool)
+        for can in (c for c in cans if not c.lying):
+            cx, cy = can.center_plane
+            reach = can.radius + 2 * max(c.r_eps, c.r_eps_sigmas * _sigma(ctx, (cx, cy, 0.5 * can.height)))
+            near_upright |= ((points[:, 0] - cx) ** 2 + (points[:, 1] - cy) ** 2 <= reach * reach) \
+                & (points[:, 2] <= can.support_height + can.height + s.band_height)
+        lying_points = np.flatnonzero(free & ~near_upright)
+        again, why = _lying(points, lying_points, ctx) if len(lying_points) >= c.min_fit_points else ([], lying_why)
+        if len(again) >= len(lying_cans):
+            for can in lying_cans:
+                cans.remove(can)
+                ctx.found.remove(can)
+            lying_cans, lying_why = again, why
+            cans.extend(again)
+            ctx.found.extend(again)
+        for can in lying_cans:
+            free[can.indices] = False
+    rest = np.flatnonzero(free)
+    # What is left may be a can seen by its lid alone, its side hidden behind what stands in front.
+    can = _lid_only(_Free(points, bands, rest), ctx) if len(rest) >= c.min_fit_points else None
+    if can is not None:
+        cans.append(can)
+        ctx.found.append(can)
+        free[can.indices] = False
+        rest = np.flatnonzero(free)
+    if len(rest) >= c.min_fit_points or not (cans or rejections):
+        reason, radius = last or ("nothing round left", None)
+        reason = f"{reason}; {lying_why}" if lying_why else reason
+        rejections.append(Rejection(centroid=points[rest].mean(axis=0) if len(rest) else points.mean(axis=0),
+                                    n_points=len(rest), reason=reason, radius=radius))
+    return cans, rejections
+
+
+def _rounds(points, bands, free, cans, rejections, ctx):
+    """The rounds of search_cluster: circle hypotheses drawn from the free points (bool over the
+    cluster's points, updated in place), verified in turn; each can found or round object claimed
+    takes its points and starts a new round. Appends to cans and rejections; returns (reason, radius)
+    of the first hypothesis that failed, or None."""
+    c, s = ctx.config, ctx.search
+    last = None
     for _ in range(int(s.max_rounds)):
         idx = np.flatnonzero(free)
         if len(idx) < c.min_fit_points:
@@ -1257,48 +1309,7 @@ def search_cluster(points, ctx):
                 break
         if not progress:
             break
-    if len(cans) > len(lying_cans) or (rejections and not lying_cans):
-        # Upright cans found: the lying cans are looked for again without them. A lying can beside one
-        # may stand out only now, and one found before may have taken a neighbour's side at its end for
-        # its end's disc (too long). So too when no lying can was found and the rounds claimed round
-        # objects that are no can (the rejections so far): beside a big one (a tin of r 99 mm) a lying can
-        # has too few of the lying search's subsampled points for its circles to outrank the tin's (fresh
-        # seed 2003 of "cluttered table").
-        for can in lying_cans:
-            free[can.indices] = True
-        # Nor the points just around an upright can that its own points leave (its side's noise, the
-        # points a sensor interpolates between it and a lying can's end).
-        near_upright = np.zeros(len(points), bool)
-        for can in (c for c in cans if not c.lying):
-            cx, cy = can.center_plane
-            reach = can.radius + 2 * max(c.r_eps, c.r_eps_sigmas * _sigma(ctx, (cx, cy, 0.5 * can.height)))
-            near_upright |= ((points[:, 0] - cx) ** 2 + (points[:, 1] - cy) ** 2 <= reach * reach) \
-                & (points[:, 2] <= can.support_height + can.height + s.band_height)
-        lying_points = np.flatnonzero(free & ~near_upright)
-        again, why = _lying(points, lying_points, ctx) if len(lying_points) >= c.min_fit_points else ([], lying_why)
-        if len(again) >= len(lying_cans):
-            for can in lying_cans:
-                cans.remove(can)
-                ctx.found.remove(can)
-            lying_cans, lying_why = again, why
-            cans.extend(again)
-            ctx.found.extend(again)
-        for can in lying_cans:
-            free[can.indices] = False
-    rest = np.flatnonzero(free)
-    # What is left may be a can seen by its lid alone, its side hidden behind what stands in front.
-    can = _lid_only(_Free(points, bands, rest), ctx) if len(rest) >= c.min_fit_points else None
-    if can is not None:
-        cans.append(can)
-        ctx.found.append(can)
-        free[can.indices] = False
-        rest = np.flatnonzero(free)
-    if len(rest) >= c.min_fit_points or not (cans or rejections):
-        reason, radius = last or ("nothing round left", None)
-        reason = f"{reason}; {lying_why}" if lying_why else reason
-        rejections.append(Rejection(centroid=points[rest].mean(axis=0) if len(rest) else points.mean(axis=0),
-                                    n_points=len(rest), reason=reason, radius=radius))
-    return cans, rejections
+    return last
 
 
 def _lid_only(free, ctx):
