@@ -1237,13 +1237,24 @@ def search_cluster(points, ctx):
         for can in lying_cans:
             free[can.indices] = False
     rest = np.flatnonzero(free)
-    # What is left may be a can seen by its lid alone, its side hidden behind what stands in front.
-    can = _lid_only(_Free(points, bands, rest), ctx) if len(rest) >= c.min_fit_points else None
-    if can is not None:
-        cans.append(can)
-        ctx.found.append(can)
-        free[can.indices] = False
+    # What is left may be a can seen by its lid alone, its side hidden behind what stands in front; or a
+    # cup whose rim tells it (hollow), standing on a can that the rounds took together with it ("cup
+    # on can", fresh 5047: a cup 8 mm wider at 1.2 m, noise 2 mm): claimed, and the rounds search again.
+    for _ in range(int(s.max_rounds)):
+        if len(rest) < c.min_fit_points:
+            break
+        can, reason, claim = _lid_only(_Free(points, bands, rest), ctx)
+        if can is not None:
+            cans.append(can)
+            ctx.found.append(can)
+            free[can.indices] = False
+        elif claim is not None:
+            rejections.append(Rejection(centroid=points[claim].mean(axis=0), n_points=len(claim), reason=reason))
+            free[claim] = False
+            last = _rounds(points, bands, free, cans, rejections, ctx) or last
         rest = np.flatnonzero(free)
+        if claim is None:
+            break
     if len(rest) >= c.min_fit_points or not (cans or rejections):
         reason, radius = last or ("nothing round left", None)
         reason = f"{reason}; {lying_why}" if lying_why else reason
@@ -1313,10 +1324,11 @@ def _rounds(points, bands, free, cans, rejections, ctx):
 
 
 def _lid_only(free, ctx):
-    """A can seen by its lid alone (Can with indices into the cluster's points, or None): its side
-    hidden behind an object in front, only its lid and a little of its side under it show ("cans
-    touching", "cluttered table": a can behind a taller one). free: the cluster's points no can took
-    (_Free).
+    """A can seen by its lid alone: its side hidden behind an object in front, only its lid and a
+    little of its side under it show ("cans touching", "cluttered table": a can behind a taller one).
+    (Can with indices into the cluster's points, "", None); (None, why, claim) when a rim's side told a
+    cup (_rim_verdict: claim, the indices of its points into the cluster's); else (None, "", None).
+    free: the cluster's points no can took (_Free).
 
     The lid: the points within max(5 mm, 3 sigma) of the height of the fullest band at least
     min_can_height up, without those under a point more than a band higher (a wall's); the next
@@ -1335,7 +1347,7 @@ def _lid_only(free, ctx):
     pts, z = free.points, free.z
     high = z >= c.min_can_height
     if np.count_nonzero(high) < c.min_fit_points:
-        return None
+        return None, "", None
     band = np.floor(z / s.band_height).astype(np.int64)
     sigma = _sigma(ctx, pts[high].mean(axis=0))
     r_eps = max(c.r_eps, c.r_eps_sigmas * sigma)
@@ -1349,42 +1361,44 @@ def _lid_only(free, ctx):
         if any(abs(int(level) - t) <= 1 for t in tried):
             continue
         tried.append(int(level))
-        can = _lid_at(free, band, int(level), sigma, r_eps, ctx)
-        if can is not None:
-            return can
-    return None
+        can, reason, claim = _lid_at(free, band, int(level), sigma, r_eps, ctx)
+        if can is not None or claim is not None:
+            return can, reason, claim
+    return None, "", None
 
 
 def _lid_at(free, band, level, sigma, r_eps, ctx):
     """_lid_only at the band `level` (band: each free point's, bands of band_height up from the
-    table): a Can or None. sigma, r_eps (m): the depth noise and the circle's tolerance there."""
+    table): (Can, "", None), (None, why, claim: the indices of a cup's points its rim's side told,
+    _rim_verdict), or (None, "", None). sigma, r_eps (m): the depth noise and the circle's tolerance
+    there."""
     c, s = ctx.config, ctx.search
     pts, z = free.points, free.z
     z_lid = float(np.median(z[np.abs(band - level) <= 1]))
     lid = _bare_lid(pts, z_lid, sigma, s.band_height)
     # Wider than a can seen from above (a tin's, a box's top): no lid of one.
     if len(lid) < c.min_fit_points or np.any(np.ptp(lid[:, :2], axis=0) > 2 * (c.max_radius + r_eps)):
-        return None
+        return None, "", None
     # A box's top fills its rectangle; a lid, even cut short by a straight shadow, fills less (fresh 5048
     # of "cluttered table": a 46 x 42 mm box's top behind a taller mug, its rim rms 2.9 mm at 1.2 m, 0.94;
     # the 10 lids alone on "cans touching" and "cluttered table" 0-99: 0.79-0.84).
     if g.rectangularity(lid[:, :2]) > s.max_lid_rectangularity:
-        return None
+        return None, "", None
     rim = g.rim_circle(lid, ctx.sensor[:2], r_eps)
     if rim is None or len(rim.outline) < c.shape_bins:
-        return None
+        return None, "", None
     if not _lid_rim(rim, lid, sigma, r_eps, ctx):
         # A lid the can in front cuts short shows its rim over less than lid_arc: pinned by the stripe
         # of side under it ("cans touching" 2408, development 73 of "cluttered table"), or, with no
         # such stripe, judged as it is if something in front stands higher (_lid_rim's shaded).
         pinned = _rim_pinned_by_side(rim, pts, z_lid, lid, sigma, r_eps, ctx)
         if pinned is None and not _lid_rim(rim, lid, sigma, r_eps, ctx, shaded=True):
-            return None
+            return None, "", None
         rim = rim if pinned is None else pinned
     rim = _clear_of_found(rim, lid, r_eps, ctx)
     cx, cy, r, far = rim.cx, rim.cy, rim.radius, rim.outline
     if _top_of_claimed(cx, cy, r, z_lid, r_eps, ctx):
-        return None
+        return None, "", None
     dist = np.hypot(pts[:, 0] - cx, pts[:, 1] - cy)
     facing = _facing(pts[:, 0], pts[:, 1], cx, cy, r, ctx)
     side = (np.abs(dist - r) <= r_eps) & (z < z_lid - s.band_height) & facing
@@ -1402,9 +1416,9 @@ def _lid_at(free, band, level, sigma, r_eps, ctx):
     # 94 lower, seen down to 16 mm over the table, were taken for a hidden can's).
     if ((n_low > max(s.min_band_points, 0.5 * n_side) or n_low >= c.min_fit_points)
             and n_side >= c.min_fit_points):
-        can = verify(free, cx, cy, r, ctx, rim=True)[0]
-        if can is not None:
-            return can
+        can, reason, claim = _rim_verdict(free, cx, cy, r, ctx)
+        if can is not None or claim is not None:
+            return can, reason, claim
         # A lid cut short by the can in front fixes its circle to a few millimetres only, and the
         # stripe of side seen beside that can lies off it (held-out 1507 of "cluttered table": 5 mm
         # outside): the circle refitted to both, if its lid's rim still fits it.
@@ -1412,20 +1426,29 @@ def _lid_at(free, band, level, sigma, r_eps, ctx):
         if np.count_nonzero(under) >= c.min_fit_points:
             joint = _rim_with_side(rim, pts[under], lid, sigma, r_eps, ctx)
             if joint is None:
-                return None
-            return verify(free, joint.cx, joint.cy, joint.radius, ctx, rim=True)[0]
+                return None, "", None
+            return _rim_verdict(free, joint.cx, joint.cy, joint.radius, ctx)
         # Too few of them to judge as a side or to refit the rim with: hidden, as when fewer are seen
         # (fresh 4048 of "cans touching": 22 points low on a can behind a wider one).
     if (_open_top(pts[dist <= r + r_eps], cx, cy, r, r_eps, 0.0, z_lid, ctx)
             or not _rest_hidden(pts[side, :2], cx, cy, r, r_eps, c.min_height + 0.01, hidden_below, ctx)):
-        return None
+        return None, "", None
     mine = free.idx[(dist <= r + r_eps) & (z <= z_lid + s.band_height)]
     return Can(T_sensor_from_can=g.can_pose(ctx.T_sensor_from_plane, cx, cy, 0.0), radius=r, height=z_lid,
                rms_error=rim.rms, arc_coverage=g.arc_coverage(pts[side, :2], cx, cy) if side.any() else 0.0,
                n_points=len(mine), n_fit_points=int(np.count_nonzero(np.abs(rim.residual) <= r_eps)),
                center_plane=np.array([cx, cy]),
                shape_error=g.shape_error(far, cx, cy, rim.outline_radius, c.shape_bins),
-               indices=mine, support="table", base_seen=False, support_height=0.0)
+               indices=mine, support="table", base_seen=False, support_height=0.0), "", None
+
+
+def _rim_verdict(free, cx, cy, r, ctx):
+    """verify (rim=True) of a lid's rim's circle: (Can, "", None), or (None, why, claim) when its side
+    told a cup or mug (hollow: its inside or handle seen; claim: the indices of its points), else
+    (None, why, None): only a hollow object is surely no can's top."""
+    can, reason, claim = verify(free, cx, cy, r, ctx, rim=True)
+    hollow = claim is not None and len(claim) > 0 and ctx.claimed and ctx.claimed[-1].hollow
+    return can, reason, claim if hollow else None
 
 
 def _clear_of_found(rim, lid, r_eps, ctx):

@@ -1326,7 +1326,9 @@ def test_a_tapered_round_object_is_rejected_as_tapered_and_a_can_is_not():
 # of r 29 mm 4 mm off the axis of one of 44 mm it stands on: its side rose through the lower lid's ring, the
 # lid came out 18 mm high and its points under it an open top's inside (can on can 4825; _lid). A 46 x 42 mm
 # box's top behind a taller mug, seen at 1.2 m, taken for a can's lid alone (cluttered table 5048; its
-# rectangularity).
+# rectangularity). A can under a cup 8 mm wider seen at 1.2 m (noise 2 mm): the rounds' circles took both,
+# "not round", and the cup's rim told it only after them (cup on can 5047; the lid's cup claimed, the rounds
+# search again).
 @pytest.mark.parametrize("case, seed", [("can touching box", 2), ("can touching box", 12), ("can touching box", 28),
                                         ("can touching box", 1), ("can touching box", 47),
                                         ("can touching box", 45), ("can touching box", 57), ("can touching box", 97),
@@ -1351,7 +1353,7 @@ def test_a_tapered_round_object_is_rejected_as_tapered_and_a_can_is_not():
                                         ("cans touching", 3202), ("cans touching", 3208), ("cans touching", 2408),
                                         ("cluttered table", 73), ("cluttered table", 83), ("cup on can", 3824),
                                         ("can touching box", 4134), ("cup on can", 4630), ("cluttered table", 4605),
-                                        ("can on can", 4825), ("cluttered table", 5048)])
+                                        ("can on can", 4825), ("cluttered table", 5048), ("cup on can", 5047)])
 def test_development_misses_are_found_where_they_stand(case, seed):
     """Every can of these generated scenes is found within 3 mm of its axis, on its support (base
     within 1 cm, height within 1.5 cm of the truth), and no other upright can is reported."""
