@@ -1248,13 +1248,14 @@ def search_cluster(points, ctx):
             cans.append(can)
             ctx.found.append(can)
             free[can.indices] = False
-        elif claim is not None:
-            rejections.append(Rejection(centroid=points[claim].mean(axis=0), n_points=len(claim), reason=reason))
-            free[claim] = False
-            last = _rounds(points, bands, free, cans, rejections, ctx) or last
-        rest = np.flatnonzero(free)
+            rest = np.flatnonzero(free)
+            break
         if claim is None:
             break
+        rejections.append(Rejection(centroid=points[claim].mean(axis=0), n_points=len(claim), reason=reason))
+        free[claim] = False
+        last = _rounds(points, bands, free, cans, rejections, ctx) or last
+        rest = np.flatnonzero(free)
     if len(rest) >= c.min_fit_points or not (cans or rejections):
         reason, radius = last or ("nothing round left", None)
         reason = f"{reason}; {lying_why}" if lying_why else reason
@@ -1446,8 +1447,10 @@ def _rim_verdict(free, cx, cy, r, ctx):
     """verify (rim=True) of a lid's rim's circle: (Can, "", None), or (None, why, claim) when its side
     told a cup or mug (hollow: its inside or handle seen; claim: the indices of its points), else
     (None, why, None): only a hollow object is surely no can's top."""
+    claimed_before = len(ctx.claimed)
     can, reason, claim = verify(free, cx, cy, r, ctx, rim=True)
-    hollow = claim is not None and len(claim) > 0 and ctx.claimed and ctx.claimed[-1].hollow
+    # verify records what it claims in ctx.claimed, hollow or not.
+    hollow = len(ctx.claimed) > claimed_before and ctx.claimed[-1].hollow
     return can, reason, claim if hollow else None
 
 

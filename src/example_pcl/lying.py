@@ -67,8 +67,8 @@ def _kasa(q, z, theta, weights):
     A direction's sums (of u, u^2, uv, u s, v s; u = lateral, v = z, centred; s = u^2 + v^2) are
     polynomials in its sine and cosine whose coefficients are the subset's moments of x, y and v up
     to the third order: one product over the points for all directions, not one per direction."""
-    x, y = q[:, 0] - q[:, 0].mean(), q[:, 1] - q[:, 1].mean()  # centred, for precision
-    zm = z.mean()
+    xm, ym, zm = q[:, 0].mean(), q[:, 1].mean(), z.mean()
+    x, y = q[:, 0] - xm, q[:, 1] - ym  # centred, for precision
     v = z - zm
     xx, xy, yy, vv = x * x, x * y, y * y, v * v
     moments = np.einsum("kn,fn->fk", np.asarray(weights, dtype=float),
@@ -81,8 +81,7 @@ def _kasa(q, z, theta, weights):
     sus = aa * a * mxxx + 3 * aa * b * mxxy + 3 * a * bb * mxyy + bb * b * myyy + a * mxvv + b * myvv
     svs = aa * mxxv + 2 * ab * mxyv + bb * myyv + mvvv
     cu, cv, r = g.kasa_from_sums(count, su, mv, suu, suv, mvv, sus, svs, suu + mvv)
-    lm = a * q[:, 0].mean() + b * q[:, 1].mean()
-    return cu + lm, cv + zm, r
+    return cu + a * xm + b * ym, cv + zm, r
 
 
 def _subsets(xy, radius, seeds):
