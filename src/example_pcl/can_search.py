@@ -1394,7 +1394,13 @@ def _lid_at(free, band, level, sigma, r_eps, ctx):
         # such stripe, judged as it is if something in front stands higher (_lid_rim's shaded).
         pinned = _rim_pinned_by_side(rim, pts, z_lid, lid, sigma, r_eps, ctx)
         if pinned is None and not _lid_rim(rim, lid, sigma, r_eps, ctx, shaded=True):
-            return None, "", None
+            # A lid seen sparsely (far, a few points per sector of the outline) has outline samples
+            # well inside its rim; judged on the rest too, those on the hull of its points (fresh 5134
+            # of "cluttered table": a can behind a taller box at 1.1 m, 82 points on its lid, the
+            # box's shadow cutting its near part; its rim 7 mm small, 7 mm off).
+            pinned = _hull_rim(rim, lid, sigma, r_eps, ctx)
+            if pinned is None:
+                return None, "", None
         rim = rim if pinned is None else pinned
     rim = _clear_of_found(rim, lid, r_eps, ctx)
     cx, cy, r, far = rim.cx, rim.cy, rim.radius, rim.outline
@@ -1452,6 +1458,17 @@ def _rim_verdict(free, cx, cy, r, ctx):
     # verify records what it claims in ctx.claimed, hollow or not.
     hollow = len(ctx.claimed) > claimed_before and ctx.claimed[-1].hollow
     return can, reason, claim if hollow else None
+
+
+def _hull_rim(rim, lid, sigma, r_eps, ctx):
+    """A lid's rim (geometry.RimCircle) fitted to its outline samples within half a sample spacing
+    of the convex hull of its points (lid: float (N, 3), plane frame, m; geometry.on_hull), when
+    that leaves out some, keeps at least shape_bins and passes _lid_rim (shaded); else None."""
+    keep = g.on_hull(lid, rim.outline, 0.5 * rim.spacing)
+    if keep.all() or np.count_nonzero(keep) < ctx.config.shape_bins:
+        return None
+    hull = g.rim_circle(lid, ctx.sensor, r_eps, outline=rim.outline[keep])
+    return hull if hull is not None and _lid_rim(hull, lid, sigma, r_eps, ctx, shaded=True) else None
 
 
 def _clear_of_found(rim, lid, r_eps, ctx):

@@ -886,6 +886,20 @@ def rim_outline(disc_xy, sensor, sectors=36):
     return outline[(outline - centroid) @ (np.asarray(sensor, dtype=float)[:2] - centroid) < 0]
 
 
+def on_hull(disc_xy, outline, max_inside):
+    """Which outline points (float (K, 2+), m) lie within max_inside (m) of the boundary of the convex
+    hull of the disc's points (float (N, 2+)): bool (K,). A sparse disc (a lid far away, a few
+    points per sector) leaves sectors whose outermost point lies well inside its rim; all of them
+    when the hull is degenerate."""
+    xy, outline = _xy(disc_xy), _xy(outline)
+    try:
+        facets = ConvexHull(xy).equations  # (a, b, c): a x + b y + c <= 0 inside
+    except QhullError:
+        return np.ones(len(outline), bool)
+    inside = -(outline @ facets[:, :2].T + facets[:, 2])
+    return inside.min(axis=1) <= max_inside
+
+
 def rim_circle(disc_xy, sensor_xy, r_eps, sectors=36, outline=None):
     """The circle of the rim of a disc of points seen from above (a can's lid), from its outline
     (rim_outline; or `outline`, float (K, 2), a part of it the caller chose), fitted algebraically,

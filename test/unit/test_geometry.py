@@ -879,6 +879,34 @@ def test_rim_outline_less_the_edge_of_a_taller_objects_shadow():
     assert not g.shadowed(np.array([[-0.045, 0.0]]), z, occluders, sensor, 0.006).any()
 
 
+def test_outline_samples_on_the_hull_of_a_sparse_lid():
+    """A lid seen sparsely (r 35 mm, points on a 7 mm grid jittered by 2 mm: 1.1 m away, every 2nd
+    pixel), its near third hidden: some sectors' outermost points (rim_outline) lie 5-20 mm inside
+    the rim. on_hull keeps exactly the samples within half the spacing of the boundary of the points'
+    convex hull (the distance to its edges measured here segment by segment), and the rim's circle of
+    those kept leaves a smaller rms than that of every sample. A degenerate hull keeps every sample."""
+    from scipy.spatial import ConvexHull
+
+    r, step, sensor = 0.035, 0.007, np.array([0.0, -0.8])
+    grid = np.mgrid[-0.05:0.05:step, -0.05:0.05:step].reshape(2, -1).T
+    grid += np.random.default_rng(1).uniform(-0.002, 0.002, grid.shape)
+    disc = grid[(np.hypot(grid[:, 0], grid[:, 1]) <= r) & (grid[:, 1] > -0.012)]
+    outline = g.rim_outline(disc, sensor)
+    assert (np.hypot(*outline.T) < r - 0.01).any()
+    keep = g.on_hull(disc, outline, 0.5 * step)
+    corners = disc[ConvexHull(disc).vertices]
+    a, b = corners, np.roll(corners, -1, axis=0)
+    along = np.einsum("ekd,ed->ek", outline[None] - a[:, None], b - a)
+    t = np.clip(along / np.einsum("ed,ed->e", b - a, b - a)[:, None], 0.0, 1.0)
+    to_edge = np.linalg.norm(outline[None] - (a[:, None] + t[..., None] * (b - a)[:, None]), axis=2).min(axis=0)
+    assert_array_equal(keep, to_edge <= 0.5 * step)
+    assert 3 <= keep.sum() < len(outline)
+    every = g.rim_circle(disc, sensor, 0.006)
+    assert g.rim_circle(disc, sensor, 0.006, outline=outline[keep]).rms < every.rms
+    line = np.c_[np.linspace(0.0, 0.03, 7), np.zeros(7)]
+    assert g.on_hull(line, np.array([[0.01, 0.01], [0.02, -0.01]]), 0.001).all()
+
+
 def test_rim_refitted_with_a_stripe_of_side_from_both_when_the_rim_is_short():
     """A rim seen over 1.3 rad of its far half (the rest in a taller object's shadow) fits a circle
     far off; with a 0.6-rad stripe of side on the near half, the fit from the rim's circle (a start
