@@ -113,7 +113,9 @@ class CylinderSearchConfig:
     (geometry.line_ratio) is one flat face. max_split_ratio: a side either half of which (each of
     at least min_fit_points points) lies this many times closer (rms) to a circle of its own than to
     the side's (geometry.split_ratio) is two round objects, the fronts of two touching cans a wider
-    circle is tangent to.
+    circle is tangent to; inner_split: above this ratio, the half's own circle, when a can's radius and
+    more than r_eps smaller, is verified, and its can taken if its rms is lower (a wider circle over a
+    can's front and a neighbour's side beside it).
     lid_arc (rad): a can seen by its lid alone (its side hidden behind an object in front) shows the
     lid's rim over at least this on the half away from the sensor (_lid_only); lid_levels: the
     heights tried for such a lid, fullest first (a box beside it may have more points at its top's
@@ -164,6 +166,7 @@ class CylinderSearchConfig:
     taper_sigmas: float = 3.0
     max_facet_ratio: float = 1.0
     max_split_ratio: float = 2.0
+    inner_split: float = 1.3
     lid_arc: float = 2.5
     lid_levels: int = 2
     max_lid_rectangularity: float = 0.9
@@ -445,7 +448,7 @@ def _facing(x, y, cx, cy, r, ctx):
     return (x - cx) * front[0] + (y - cy) * front[1] > -0.25 * r
 
 
-def verify(free, cx, cy, r, ctx, z0=None, again=True, rim=False):
+def verify(free, cx, cy, r, ctx, z0=None, again=True, rim=False, split=True):
     """One circle hypothesis against a cluster's free points (_Free, plane frame):
     (Can whose .indices index the cluster's points, None, None), or (None, reason, claim):
     claim the indices of the points of a round object that is no can (a tin, cup, bowl), else None.
@@ -453,7 +456,8 @@ def verify(free, cx, cy, r, ctx, z0=None, again=True, rim=False):
     more than r_eps from the circle the bands were judged on, verify once more from the fitted
     circle. rim: the circle is a lid's rim (_lid_only), judged as it is, not fitted to the side: a
     side seen over a narrow stripe does not fix a circle, and over at least min_rim_side_arc it is a
-    can's when the rest of its near half is hidden (_rest_hidden)."""
+    can's when the rest of its near half is hidden (_rest_hidden). split: a half of the side with a
+    smaller circle of its own is verified on it (inner_split)."""
     c, s = ctx.config, ctx.search
     sigma = _sigma(ctx, (cx, cy, free.median_z))
     r_eps = max(c.r_eps, c.r_eps_sigmas * sigma)
@@ -482,7 +486,7 @@ def verify(free, cx, cy, r, ctx, z0=None, again=True, rim=False):
             if again and c.min_radius <= kr < r0 - 2 * r_eps:
                 # A wide circle tangent to a can's front: its close points are the can's, whose circle
                 # lies inside it. Verified from that circle instead.
-                return verify(free, kx, ky, kr, ctx, z0, again=False)
+                return verify(free, kx, ky, kr, ctx, z0, again=False, split=split)
             break
         cx, cy, r = kx, ky, kr
         dist = np.hypot(x - cx, y - cy)
@@ -545,6 +549,12 @@ def verify(free, cx, cy, r, ctx, z0=None, again=True, rim=False):
     if not np.isfinite(kr):
         return None, "no circle fits the side (the points are collinear)", None
     if not c.min_radius - r_eps <= kr <= c.max_radius + r_eps:
+        # A wide circle over a can and a box beside it (fresh 5342 of "can touching box": r 95 mm at
+        # the can's base, its claim took the can): the can's own circle first.
+        own = _own_circle_can(free, g.split_circles(pts[side], kx, ky, kr, c.min_fit_points), kr, r_eps, ctx) \
+            if split else None
+        if own is not None:
+            return own, None, None
         return None, (f"radius {1e3 * kr:.1f} mm outside [{1e3 * c.min_radius:.0f}, {1e3 * c.max_radius:.0f}] mm"
                       ), _claim_round(pts[side], kx, ky, kr, claim, c)
     xy = pts[side, :2]
@@ -563,6 +573,9 @@ def verify(free, cx, cy, r, ctx, z0=None, again=True, rim=False):
     else:
         cx, cy, r, cutoff = _robust_refit(xy, cx, cy, r, r_eps, ctx)
     if not c.min_radius <= r <= c.max_radius:
+        own = _own_circle_can(free, g.split_circles(xy, cx, cy, r, c.min_fit_points), r, r_eps, ctx) if split else None
+        if own is not None:
+            return own, None, None
         return None, (f"radius {1e3 * r:.1f} mm outside [{1e3 * c.min_radius:.0f}, {1e3 * c.max_radius:.0f}] mm"
                       ), _claim_round(xy, cx, cy, r, claim, c)
     # A wide circle through part of a can's side fits onto the can, but its run of bands was grown on
@@ -570,14 +583,15 @@ def verify(free, cx, cy, r, ctx, z0=None, again=True, rim=False):
     # too a circle refined 7 mm small at the height of a lying can touching the can: its upper bands lay
     # 3 mm off it (fresh 4542 of "lying can touching can").
     if again and (np.hypot(cx - judged[0], cy - judged[1]) > r_eps or abs(r - judged[2]) > r_eps):
-        return verify(free, cx, cy, r, ctx, again=False)
-    return _judge_side(free, cx, cy, r, r_eps, cutoff, sigma, z_lo, z_hi, top, claim, ctx, s.min_occluded_arc)
+        return verify(free, cx, cy, r, ctx, again=False, split=split)
+    return _judge_side(free, cx, cy, r, r_eps, cutoff, sigma, z_lo, z_hi, top, claim, ctx, s.min_occluded_arc, split)
 
 
-def _judge_side(free, cx, cy, r, r_eps, cutoff, sigma, z_lo, z_hi, top, claim, ctx, min_occluded_arc):
+def _judge_side(free, cx, cy, r, r_eps, cutoff, sigma, z_lo, z_hi, top, claim, ctx, min_occluded_arc, split=False):
     """verify's judgement of the side on the circle (cx, cy, r) it fitted (or a lid's rim): its run of
     bands z_lo..z_hi, the lid's height top (m), the robust fit's cut-off (m); claim: verify's;
-    min_occluded_arc (rad): the least arc seen when the rest of the near half is hidden."""
+    min_occluded_arc (rad): the least arc seen when the rest of the near half is hidden; split:
+    verify's."""
     c, s = ctx.config, ctx.search
     # The fit moved the circle: the rest looks within reach of a handle or a support of the new one.
     near = free.near(cx, cy, r + r_eps + max(2 * s.handle_reach, s.support_reach))
@@ -611,14 +625,21 @@ def _judge_side(free, cx, cy, r, r_eps, cutoff, sigma, z_lo, z_hi, top, claim, c
     base = _percentile(z[side], 1)
     # Inlier fraction of the side below the lid: points inside the disc there are no can's.
     fraction = n_side / max(int(np.count_nonzero((dist <= r + r_eps) & in_run)), 1)
+    halves = g.split_circles(sxy, cx, cy, r, c.min_fit_points)
+    ratio = float("nan") if halves is None else max((h[0] for h in halves), default=0.0)
+    # A wider circle over a can's front and an object beside or in front of it (fresh 5134 of
+    # "cluttered table": r 39.9 mm over two touching cans, 11 mm off the one of 29.7, rms 2.6 mm; 5113:
+    # r 50.5 mm over a can and the cup in front, "not round"): the can's own circle, if it fits better.
+    own = _own_circle_can(free, halves, r, r_eps, ctx, better_than=rms) if split else None
+    if own is not None:
+        return own, None, None
     if rms > max_rms:
         return None, f"rms residual {1e3 * rms:.2f} mm > {1e3 * max_rms:.2f} mm", None
     shape = g.shape_error(sxy, cx, cy, r, c.shape_bins)
     if shape > c.max_shape_error:
         return None, f"shape error {1e3 * shape:.2f} mm > {1e3 * c.max_shape_error:.2f} mm (not round)", None
-    split = g.split_ratio(sxy, cx, cy, r, c.min_fit_points)
-    if split > s.max_split_ratio:
-        return None, (f"two round objects: half of the side lies {split:.1f} times closer to a circle of its own "
+    if ratio > s.max_split_ratio:
+        return None, (f"two round objects: half of the side lies {ratio:.1f} times closer to a circle of its own "
                       f"(max {s.max_split_ratio:.1f})"), None
     if fraction < c.min_inlier_fraction:
         # A round side with its inside seen (a cup's far wall) is a hollow object: named and claimed,
@@ -687,6 +708,22 @@ def _judge_side(free, cx, cy, r, r_eps, cutoff, sigma, z_lo, z_hi, top, claim, c
               center_plane=np.array([cx, cy]), shape_error=shape, indices=mine, support=support,
               base_seen=base_seen, support_height=float(base_z))
     return can, None, None
+
+
+def _own_circle_can(free, halves, r, r_eps, ctx, better_than=np.inf):
+    """The Can verified (once: not again from there) on the circle of its own of the half of a side
+    (halves: geometry.split_circles' about the side's circle of radius r, m) that lies the most
+    times closer to it, when at least inner_split times, and that circle is of a can's radius and
+    more than r_eps smaller than the side's: the half on a can of a wider circle over it and an
+    object beside or in front of it. None when not, or its rms is not below better_than (m)."""
+    c = ctx.config
+    if not halves:
+        return None
+    ratio, kx, ky, kr = max(halves)
+    if ratio < ctx.search.inner_split or not c.min_radius <= kr < r - r_eps:
+        return None
+    can, _, _ = verify(free, kx, ky, kr, ctx, again=False, split=False)
+    return can if can is not None and can.rms_error < better_than else None
 
 
 def _offset_step(bands, residual, lo, hi, min_step, min_bands=2):

@@ -775,16 +775,24 @@ def split_ratio(xy, cx, cy, radius, min_points=6):
     rms distance to that circle over the rms distance to the half's own (Kasa) circle. About 1 for
     one round object; well above 1 where the arc joins two (the fronts of two touching cans on a
     wider circle tangent to both). NaN when a half holds fewer than min_points points."""
-    ratio = 0.0
+    halves = split_circles(xy, cx, cy, radius, min_points)
+    return float("nan") if halves is None else max((h[0] for h in halves), default=0.0)
+
+
+def split_circles(xy, cx, cy, radius, min_points=6):
+    """split_ratio's halves: a list of (ratio, kx, ky, kr) (m), each half's ratio and own (Kasa)
+    circle, for the halves with one (a straight half has none); None when a half holds fewer than
+    min_points points."""
+    halves = []
     for half in _halves(xy, cx, cy):
         if len(half) < min_points:
-            return float("nan")
+            return None
         kx, ky, kr = (float(v[0]) for v in fit_circles_algebraic(half))
         if not np.isfinite(kr):
             continue  # a straight half: no circle of its own (facet_ratio's concern)
         own, circle = circle_rms(half, kx, ky, kr), circle_rms(half, cx, cy, radius)
-        ratio = max(ratio, circle / own if own > 0 else float("inf"))
-    return float(ratio)
+        halves.append((circle / own if own > 0 else float("inf"), kx, ky, kr))
+    return halves
 
 
 @dataclass(frozen=True)
