@@ -119,10 +119,11 @@ class CylinderSearchConfig:
     lid_arc (rad): a can seen by its lid alone (its side hidden behind an object in front) shows the
     lid's rim over at least this on the half away from the sensor (_lid_only); lid_levels: the
     heights tried for such a lid, fullest first (a box beside it may have more points at its top's
-    height); max_lid_rectangularity: a lid whose points' convex hull fills more of its smallest
-    enclosing rectangle (geometry.rectangularity: pi / 4 for a disc) is a box's top; min_rim_side_arc (rad):
-    its side seen lower, a stripe of it over at least this, on the rim's circle, is a can's side when
-    the rest of its near half is hidden (verify, rim=True).
+    height; up to as many boxes' tops tried count for none); max_lid_rectangularity: a lid whose
+    points' convex hull fills more of its smallest enclosing rectangle (geometry.rectangularity: pi / 4
+    for a disc) is a box's top; min_rim_side_arc (rad): its side seen lower, a stripe of it over at
+    least this, on the rim's circle, is a can's side when the rest of its near half is hidden
+    (verify, rim=True).
     lying_gap (m), lying_directions: lying cans are looked for in each cluster and in what the upright
     search leaves (example_pcl.lying): a lying can's axis, scanned over lying_directions directions,
     lies one radius above the table to within lying_gap (and 3 sigma). lying_join_angle (rad), lying_join_offset (m),
@@ -1390,37 +1391,56 @@ def _lid_only(free, ctx):
     sigma = _sigma(ctx, pts[high].mean(axis=0))
     r_eps = max(c.r_eps, c.r_eps_sigmas * sigma)
     counts = np.bincount(band[high])
-    tried = []
+    tried, tops, boxes = [], 0, np.zeros(len(z), bool)
     # A can beside a box lower than it (held-out 1909 of "can touching box", seen steeply from above)
-    # has fewer points at its lid's height than the box at its top's.
+    # has fewer points at its lid's height than the box at its top's. A box's top tried (up to
+    # lid_levels of them) is no lid tried: its points leave the lids looked for next, and the band next
+    # to it is tried too (fresh 5329 of "cluttered table": a can's lid at 93 mm beside a box's top at
+    # 100 and another at 197, fuller).
     for level in np.argsort(-counts, kind="stable"):
-        if len(tried) == s.lid_levels or (tried and counts[level] < c.min_fit_points):
+        if (len(tried) == s.lid_levels or tops == s.lid_levels
+                or ((tried or tops) and counts[level] < c.min_fit_points)):
             break
         if any(abs(int(level) - t) <= 1 for t in tried):
             continue
-        tried.append(int(level))
-        can, reason, claim = _lid_at(free, band, int(level), sigma, r_eps, ctx)
+        n_boxes = np.count_nonzero(boxes)
+        can, reason, claim = _lid_at(free, band, int(level), sigma, r_eps, ctx, boxes)
         if can is not None or claim is not None:
             return can, reason, claim
+        if np.count_nonzero(boxes) == n_boxes:
+            tried.append(int(level))
+        else:
+            tops += 1
     return None, "", None
 
 
-def _lid_at(free, band, level, sigma, r_eps, ctx):
+def _lid_at(free, band, level, sigma, r_eps, ctx, boxes):
     """_lid_only at the band `level` (band: each free point's, bands of band_height up from the
     table): (Can, "", None), (None, why, claim: the indices of a cup's points its rim's side told,
     _rim_verdict), or (None, "", None). sigma, r_eps (m): the depth noise and the circle's tolerance
-    there."""
+    there. boxes: bool over the free points, those of the boxes' tops seen before (left out of the
+    lid); a lid wider than a can or filling its rectangle adds its points (updated in place)."""
     c, s = ctx.config, ctx.search
     pts, z = free.points, free.z
-    z_lid = float(np.median(z[np.abs(band - level) <= 1]))
-    lid = _bare_lid(pts, z_lid, sigma, s.band_height)
-    # Wider than a can seen from above (a tin's, a box's top): no lid of one.
-    if len(lid) < c.min_fit_points or np.any(np.ptp(lid[:, :2], axis=0) > 2 * (c.max_radius + r_eps)):
+    rest = ~boxes
+    at_level = (np.abs(band - level) <= 1) & rest
+    if not at_level.any():
         return None, "", None
-    # A box's top fills its rectangle; a lid, even cut short by a straight shadow, fills less (fresh 5048
-    # of "cluttered table": a 46 x 42 mm box's top behind a taller mug, its rim rms 2.9 mm at 1.2 m, 0.94;
-    # the 10 lids alone on "cans touching" and "cluttered table" 0-99: 0.79-0.84).
-    if g.rectangularity(lid[:, :2]) > s.max_lid_rectangularity:
+    z_lid = float(np.median(z[at_level]))
+    lid = _bare_lid(pts[rest] if boxes.any() else pts, z_lid, sigma, s.band_height)
+    above = boxes & (z > z_lid)
+    if above.any() and len(lid):
+        # Under the edge of a box's top lie its faces, not a lid.
+        lid = lid[cKDTree(pts[above, :2]).query_ball_point(lid[:, :2], 0.005, return_length=True) == 0]
+    # Wider than a can seen from above (a tin's, a box's top), or filling its rectangle as a box's top
+    # does (a lid, even cut short by a straight shadow, fills less: fresh 5048 of "cluttered table", a
+    # 46 x 42 mm box's top behind a taller mug, its rim rms 2.9 mm at 1.2 m, 0.94; the 10 lids alone on
+    # "cans touching" and "cluttered table" 0-99: 0.79-0.84): no lid of one.
+    if len(lid) >= c.min_fit_points and (np.any(np.ptp(lid[:, :2], axis=0) > 2 * (c.max_radius + r_eps))
+                                         or g.rectangularity(lid[:, :2]) > s.max_lid_rectangularity):
+        boxes |= rest & (np.abs(z - z_lid) <= max(0.005, 3 * sigma))
+        return None, "", None
+    if len(lid) < c.min_fit_points:
         return None, "", None
     rim = g.rim_circle(lid, ctx.sensor[:2], r_eps)
     if rim is None or len(rim.outline) < c.shape_bins:

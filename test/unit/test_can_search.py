@@ -1367,7 +1367,9 @@ def test_a_tapered_round_object_is_rejected_as_tapered_and_a_can_is_not():
 # tangent to both, and a can behind a taller box seen by a sparse lid, missed (cluttered table 5134; the
 # same, and the lid's outline on the hull of its points). A can touching a box at 1.2 m: a circle of r 95 mm
 # over both at their base, no can's radius, claimed the can as a round object (can touching box 5342; the
-# can's own circle verified first).
+# can's own circle verified first). A can's lid at 93 mm beside a box's top at 100 (fuller) and another's at
+# 197: the two box tops took both lid levels, the lid's band was next to one tried (cluttered table 5329; a
+# box's top is no lid tried, its points and the faces under its edge leave the lids looked for next).
 @pytest.mark.parametrize("case, seed", [("can touching box", 2), ("can touching box", 12), ("can touching box", 28),
                                         ("can touching box", 1), ("can touching box", 47),
                                         ("can touching box", 45), ("can touching box", 57), ("can touching box", 97),
@@ -1394,7 +1396,7 @@ def test_a_tapered_round_object_is_rejected_as_tapered_and_a_can_is_not():
                                         ("can touching box", 4134), ("cup on can", 4630), ("cluttered table", 4605),
                                         ("can on can", 4825), ("cluttered table", 5048), ("cup on can", 5047),
                                         ("cluttered table", 5113), ("cluttered table", 5134),
-                                        ("can touching box", 5342)])
+                                        ("can touching box", 5342), ("cluttered table", 5329)])
 def test_development_misses_are_found_where_they_stand(case, seed):
     """Every can of these generated scenes is found within 3 mm of its axis, on its support (base
     within 1 cm, height within 1.5 cm of the truth), and no other upright can is reported."""
