@@ -182,7 +182,8 @@ def test_two_touching_cans_fronts_on_one_wide_circle_are_two_round_objects():
 def test_split_circles_give_each_halfs_own_circle():
     """A can's front (r 30 mm, 1.6 rad) and a neighbour's side beside it, farther back, and a wider
     circle fitted to both: the half on the can (a part of its front, a Kasa circle) has its own
-    circle within 2.5 mm of the can's, its radius within 2 mm, and the larger ratio is split_ratio; a half of fewer than min_points points: None."""
+    circle within 2.5 mm of the can's, its radius within 2 mm, and the larger ratio is split_ratio;
+    a half of fewer than min_points points: None."""
     rng = np.random.default_rng(5)
     angle = np.linspace(-np.pi / 2 - 0.8, -np.pi / 2 + 0.8, 60)
     front = np.c_[0.03 * np.cos(angle), 0.03 * np.sin(angle)]
@@ -202,14 +203,22 @@ def test_a_wider_circle_over_a_can_and_its_neighbour_gives_way_to_the_cans_own()
     verified first (rms 2.6 mm, split ratio 1.49, below max_split_ratio) and reported 11.5 mm off,
     standing on an object. The half of its side on the can has a circle of its own (inner_split),
     verified as a can with a lower rms: found within 1.5 mm, its radius within 1 mm, on the table."""
-    scene = sc.generate_scene(so.case_spec("cluttered table", 5134))
-    to_table = transforms.invert(np.asarray(scene.truth["camera_from_table"]))
-    truth = next(t for t in scene.truth["objects"] if t["is_can"] and t["radius"] < 0.03)
-    base = transforms.apply(to_table, truth["base_center"])
-    result = af.find_cans(scene.xyz)
-    can = min(result.cans, key=lambda c: np.hypot(*(table_xy(to_table, c)[:2] - base[:2])))
-    assert np.hypot(*(table_xy(to_table, can)[:2] - base[:2])) < 0.0015
+    truth, can, off = can_nearest_truth("cluttered table", 5134, lambda t: t["is_can"] and t["radius"] < 0.03)
+    assert off < 0.0015
     assert can.radius == pytest.approx(truth["radius"], abs=0.001) and can.support == "table"
+
+
+def can_nearest_truth(case, seed, pick):
+    """(truth, can, off) in a generated scene: the first object of its truth that pick (a predicate
+    on its dict) takes, the Can found nearest its axis and how far from it (m, on the table)."""
+    scene = sc.generate_scene(so.case_spec(case, seed))
+    to_table = transforms.invert(np.asarray(scene.truth["camera_from_table"]))
+    truth = next(t for t in scene.truth["objects"] if pick(t))
+    base = transforms.apply(to_table, truth["base_center"])
+    cans = af.find_cans(scene.xyz).cans
+    off = [np.hypot(*(table_xy(to_table, c)[:2] - base[:2])) for c in cans]
+    k = int(np.argmin(off))
+    return truth, cans[k], off[k]
 
 
 def test_two_touching_half_hidden_cans_are_not_the_wide_circle_tangent_to_both():
@@ -1461,13 +1470,9 @@ def test_a_sparse_lid_is_judged_on_its_outline_on_the_hull():
     points up to 19 mm inside the rim, whose circle came out 7 mm small and 7 mm off, and the can was
     missed. Judged on the samples on the hull of its points (can_search._hull_rim): found within 3 mm
     of its axis, its radius within 1.5 mm, its base not seen."""
-    scene = sc.generate_scene(so.case_spec("cluttered table", 5134))
-    to_table = transforms.invert(np.asarray(scene.truth["camera_from_table"]))
-    truth = next(t for t in scene.truth["objects"] if t["is_can"] and t["visible_points"] < 400)
-    base = transforms.apply(to_table, truth["base_center"])
-    result = af.find_cans(scene.xyz)
-    can = min(result.cans, key=lambda c: np.hypot(*(table_xy(to_table, c)[:2] - base[:2])))
-    assert np.hypot(*(table_xy(to_table, can)[:2] - base[:2])) < 0.003
+    truth, can, off = can_nearest_truth("cluttered table", 5134,
+                                        lambda t: t["is_can"] and t["visible_points"] < 400)
+    assert off < 0.003
     assert can.radius == pytest.approx(truth["radius"], abs=0.0015) and not can.base_seen and not can.lying
 
 
