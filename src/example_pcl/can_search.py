@@ -550,14 +550,7 @@ def verify(free, cx, cy, r, ctx, z0=None, again=True, rim=False, split=True):
     if not np.isfinite(kr):
         return None, "no circle fits the side (the points are collinear)", None
     if not c.min_radius - r_eps <= kr <= c.max_radius + r_eps:
-        # A wide circle over a can and a box beside it (fresh 5342 of "can touching box": r 95 mm at
-        # the can's base, its claim took the can): the can's own circle first.
-        own = _own_circle_can(free, g.split_circles(pts[side], kx, ky, kr, c.min_fit_points), kr, r_eps, ctx) \
-            if split else None
-        if own is not None:
-            return own, None, None
-        return None, (f"radius {1e3 * kr:.1f} mm outside [{1e3 * c.min_radius:.0f}, {1e3 * c.max_radius:.0f}] mm"
-                      ), _claim_round(pts[side], kx, ky, kr, claim, c)
+        return _no_cans_radius(free, pts[side], kx, ky, kr, r_eps, claim, ctx, split)
     xy = pts[side, :2]
     if len(xy) > s.fit_points:
         xy = xy[:: int(np.ceil(len(xy) / s.fit_points))]
@@ -574,11 +567,7 @@ def verify(free, cx, cy, r, ctx, z0=None, again=True, rim=False, split=True):
     else:
         cx, cy, r, cutoff = _robust_refit(xy, cx, cy, r, r_eps, ctx)
     if not c.min_radius <= r <= c.max_radius:
-        own = _own_circle_can(free, g.split_circles(xy, cx, cy, r, c.min_fit_points), r, r_eps, ctx) if split else None
-        if own is not None:
-            return own, None, None
-        return None, (f"radius {1e3 * r:.1f} mm outside [{1e3 * c.min_radius:.0f}, {1e3 * c.max_radius:.0f}] mm"
-                      ), _claim_round(xy, cx, cy, r, claim, c)
+        return _no_cans_radius(free, xy, cx, cy, r, r_eps, claim, ctx, split)
     # A wide circle through part of a can's side fits onto the can, but its run of bands was grown on
     # the wide circle's points (a part of the can's height): the bands are judged again on the fit. So
     # too a circle refined 7 mm small at the height of a lying can touching the can: its upper bands lay
@@ -709,6 +698,19 @@ def _judge_side(free, cx, cy, r, r_eps, cutoff, sigma, z_lo, z_hi, top, claim, c
               center_plane=np.array([cx, cy]), shape_error=shape, indices=mine, support=support,
               base_seen=base_seen, support_height=float(base_z))
     return can, None, None
+
+
+def _no_cans_radius(free, side, cx, cy, r, r_eps, claim, ctx, split):
+    """verify's answer to a side (float (N, 2+), m) whose circle (cx, cy, r) has no can's radius: the
+    can of its own circle of the half of the side on a can (_own_circle_can, when split), else
+    (None, why, the claim of a round object: _claim_round). A wide circle over a can and a box
+    beside it (fresh 5342 of "can touching box": r 95 mm at the can's base) claimed the can."""
+    c = ctx.config
+    own = _own_circle_can(free, g.split_circles(side, cx, cy, r, c.min_fit_points), r, r_eps, ctx) if split else None
+    if own is not None:
+        return own, None, None
+    return None, (f"radius {1e3 * r:.1f} mm outside [{1e3 * c.min_radius:.0f}, {1e3 * c.max_radius:.0f}] mm"
+                  ), _claim_round(side, cx, cy, r, claim, c)
 
 
 def _own_circle_can(free, halves, r, r_eps, ctx, better_than=np.inf):
@@ -1403,45 +1405,53 @@ def _lid_only(free, ctx):
             break
         if any(abs(int(level) - t) <= 1 for t in tried):
             continue
-        n_boxes = np.count_nonzero(boxes)
-        can, reason, claim = _lid_at(free, band, int(level), sigma, r_eps, ctx, boxes)
+        can, reason, claim, top = _lid_at(free, band, int(level), sigma, r_eps, ctx, boxes)
         if can is not None or claim is not None:
             return can, reason, claim
-        if np.count_nonzero(boxes) == n_boxes:
+        if top is None:
             tried.append(int(level))
         else:
+            boxes |= top
             tops += 1
     return None, "", None
 
 
 def _lid_at(free, band, level, sigma, r_eps, ctx, boxes):
     """_lid_only at the band `level` (band: each free point's, bands of band_height up from the
-    table): (Can, "", None), (None, why, claim: the indices of a cup's points its rim's side told,
-    _rim_verdict), or (None, "", None). sigma, r_eps (m): the depth noise and the circle's tolerance
-    there. boxes: bool over the free points, those of the boxes' tops seen before (left out of the
-    lid); a lid wider than a can or filling its rectangle adds its points (updated in place)."""
+    table): (Can, "", None, None), (None, why, claim: the indices of a cup's points its rim's side
+    told, _rim_verdict, None), (None, "", None, top: bool over the free points, a box's top's: a lid
+    wider than a can or filling its rectangle) or (None, "", None, None). sigma, r_eps (m): the depth
+    noise and the circle's tolerance there. boxes: bool over the free points, those of the boxes'
+    tops seen before (left out of the lid)."""
     c, s = ctx.config, ctx.search
     pts, z = free.points, free.z
     rest = ~boxes
     at_level = (np.abs(band - level) <= 1) & rest
     if not at_level.any():
-        return None, "", None
+        return None, "", None, None
     z_lid = float(np.median(z[at_level]))
-    lid = _bare_lid(pts[rest] if boxes.any() else pts, z_lid, sigma, s.band_height)
+    lid = _bare_lid(pts[rest], z_lid, sigma, s.band_height)
     above = boxes & (z > z_lid)
     if above.any() and len(lid):
         # Under the edge of a box's top lie its faces, not a lid.
         lid = lid[cKDTree(pts[above, :2]).query_ball_point(lid[:, :2], 0.005, return_length=True) == 0]
+    if len(lid) < c.min_fit_points:
+        return None, "", None, None
     # Wider than a can seen from above (a tin's, a box's top), or filling its rectangle as a box's top
     # does (a lid, even cut short by a straight shadow, fills less: fresh 5048 of "cluttered table", a
     # 46 x 42 mm box's top behind a taller mug, its rim rms 2.9 mm at 1.2 m, 0.94; the 10 lids alone on
     # "cans touching" and "cluttered table" 0-99: 0.79-0.84): no lid of one.
-    if len(lid) >= c.min_fit_points and (np.any(np.ptp(lid[:, :2], axis=0) > 2 * (c.max_radius + r_eps))
-                                         or g.rectangularity(lid[:, :2]) > s.max_lid_rectangularity):
-        boxes |= rest & (np.abs(z - z_lid) <= max(0.005, 3 * sigma))
-        return None, "", None
-    if len(lid) < c.min_fit_points:
-        return None, "", None
+    if (np.any(np.ptp(lid[:, :2], axis=0) > 2 * (c.max_radius + r_eps))
+            or g.rectangularity(lid[:, :2]) > s.max_lid_rectangularity):
+        return None, "", None, rest & on_lid(z, z_lid, sigma)
+    return (*_lid_judged(free, z_lid, lid, sigma, r_eps, ctx), None)
+
+
+def _lid_judged(free, z_lid, lid, sigma, r_eps, ctx):
+    """_lid_at's judgement of a lid (lid: its points, float (N, 3), plane frame, at the height z_lid,
+    m): (Can, "", None), (None, why, claim: a cup's points, _rim_verdict) or (None, "", None)."""
+    c, s = ctx.config, ctx.search
+    pts, z = free.points, free.z
     rim = g.rim_circle(lid, ctx.sensor[:2], r_eps)
     if rim is None or len(rim.outline) < c.shape_bins:
         return None, "", None
@@ -1631,7 +1641,13 @@ def _bare_lid(points, z_lid, sigma, band):
 def lid_points(points, z_lid, sigma):
     """The points (float (N, 3), plane frame, m) on a lid at height z_lid (m): within max(5 mm,
     3 sigma) of it (sigma: the depth noise there, m)."""
-    return points[np.abs(points[:, 2] - z_lid) <= max(0.005, 3 * sigma)]
+    return points[on_lid(points[:, 2], z_lid, sigma)]
+
+
+def on_lid(z, z_lid, sigma):
+    """Which heights z (m) lie on a lid at z_lid (m): within max(5 mm, 3 sigma) of it (sigma: the
+    depth noise there, m). bool, z's shape."""
+    return np.abs(z - z_lid) <= max(0.005, 3 * sigma)
 
 
 def _lying(points, rest, ctx):

@@ -1455,7 +1455,7 @@ def test_can_behind_a_can_is_found(seed):
     its side; development seeds 0, 5 of "cans touching") is found: every part of its near half not seen
     lies behind the front can. Over so short an arc the circle is less sure: within 6 mm of the axis.
     Fresh 4048: its lid whole, 31 points near its circle under it, 22 of them low: too few to judge as a
-    side or to refit the rim with, and it was dropped; hidden now (can_search._lid_at). Fresh 4121:
+    side or to refit the rim with, and it was dropped; hidden now (can_search._lid_judged). Fresh 4121:
     no side seen at all, its lid's rim over 2.43 rad (the front can's shadow cuts it), less than
     lid_arc; over min_arc will do with something higher in front (can_search._lid_rim). Fresh 4306: its
     lid's rim cut short at both ends by the front can's shadow, the two ends 11 and 17 mm inside the
