@@ -27,6 +27,7 @@ def main():
         run("bench_find_can.py")
     run("bench_auto.py")  # writes its own section of docs/benchmarks.md (auto)
     run("bench_cans.py")  # writes its figures into docs/can_search.md
+    run("bench_filed.py")  # builds the finder as issue 13 was filed; writes into docs/can_search.md
     run("bench_views.py")  # writes its figures into docs/can_search.md
     run("bench_range.py")  # writes its figures into docs/can_search.md
     run("bench_tracking.py")
