@@ -22,12 +22,9 @@ import numpy as np
 
 HERE = pathlib.Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
-from common import machine_line, table, write_section  # noqa: E402
+from bench_cans import DOC, OBJECTS, OSD  # noqa: E402
+from common import PROJECT, machine_line, table, write_section  # noqa: E402
 
-PROJECT = HERE.parent
-OSD = PROJECT / ".." / "shared" / "data" / "osd"
-OBJECTS = HERE / "osd_objects.json"
-DOC = PROJECT / "docs" / "can_search.md"
 FILED = "c258b07"  # main when issue 13 was filed: find_cans was the issue 5 finder
 TARGET = {"median": (20.0, 16.5), "p90": (33.0, 29.0)}  # ms: the issue's target and the filed finder's time
 
