@@ -449,6 +449,10 @@ def _facing(x, y, cx, cy, r, ctx):
     return (x - cx) * front[0] + (y - cy) * front[1] > -0.25 * r
 
 
+class _TooFew(str):
+    """verify's reason when too few side points lie on the circle to judge it by (a str as every reason)."""
+
+
 def verify(free, cx, cy, r, ctx, z0=None, again=True, rim=False, split=True):
     """One circle hypothesis against a cluster's free points (_Free, plane frame):
     (Can whose .indices index the cluster's points, None, None), or (None, reason, claim):
@@ -528,7 +532,7 @@ def verify(free, cx, cy, r, ctx, z0=None, again=True, rim=False, split=True):
     side = on & (z >= z_lo) & (z < z_end)
     n_side = int(np.count_nonzero(side))
     if n_side < c.min_fit_points:
-        return None, f"{n_side} points on the circle (min {c.min_fit_points})", None
+        return None, _TooFew(f"{n_side} points on the circle (min {c.min_fit_points})"), None
 
     def claim(x0=None, y0=None, radius=None, z_from=None, hollow=False, with_lid=False):
         """The points of a round object that is no can: its disc over the run, from z_from (m) when
@@ -1508,7 +1512,12 @@ def _lid_judged(free, z_lid, lid, sigma, r_eps, ctx):
             joint = _rim_with_side(rim, pts[under], lid, sigma, r_eps, ctx)
             if joint is None:
                 return None, "", None
-            return _rim_verdict(free, joint.cx, joint.cy, joint.radius, ctx)
+            can, reason, claim = _rim_verdict(free, joint.cx, joint.cy, joint.radius, ctx)
+            # Fewer than min_fit_points of them on its circle over the run of bands the side shows: too
+            # few to judge a side by, hidden as below (fresh 5731 of "cans touching": a can behind a wider
+            # one 8 mm lower, 25 of its points on the circle).
+            if can is not None or claim is not None or not isinstance(reason, _TooFew):
+                return can, reason, claim
         # Too few of them to judge as a side or to refit the rim with: hidden, as when fewer are seen
         # (fresh 4048 of "cans touching": 22 points low on a can behind a wider one).
     if (_open_top(pts[dist <= r + r_eps], cx, cy, r, r_eps, 0.0, z_lid, ctx)
