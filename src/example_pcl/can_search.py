@@ -1441,13 +1441,6 @@ def _lid_at(free, band, level, sigma, r_eps, ctx, boxes):
         lid = lid[cKDTree(pts[above, :2]).query_ball_point(lid[:, :2], 0.005, return_length=True) == 0]
     if len(lid) < c.min_fit_points:
         return None, "", None, None
-    # A lid is flat: its heights spread as the noise spreads them. A mug's rim with the top of its inner
-    # wall under it, seen over a taller box in front, spreads down from the rim (fresh 5119 of
-    # "cluttered table": 8.5 mm from the 5th to the 95th percentile, 6.7 sigma; the 16 lids alone on
-    # "cans touching", "cluttered table" and "box hides base" 0-99 and 400-459: 1.9-3.5 sigma, at
-    # most 5.6 mm).
-    if _not_flat(lid[:, 2], sigma):
-        return None, "", None, None
     # Wider than a can seen from above (a tin's, a box's top), or filling its rectangle as a box's top
     # does (a lid, even cut short by a straight shadow, fills less: fresh 5048 of "cluttered table", a
     # 46 x 42 mm box's top behind a taller mug, its rim rms 2.9 mm at 1.2 m, 0.94; the 10 lids alone on
@@ -1520,7 +1513,13 @@ def _lid_judged(free, z_lid, lid, sigma, r_eps, ctx):
                 return can, reason, claim
         # Too few of them to judge as a side or to refit the rim with: hidden, as when fewer are seen
         # (fresh 4048 of "cans touching": 22 points low on a can behind a wider one).
-    if (_open_top(pts[dist <= r + r_eps], cx, cy, r, r_eps, 0.0, z_lid, ctx)
+    # A can seen by its lid alone has a flat lid: its heights spread as the noise spreads them. A mug's
+    # rim with the top of its inner wall under it, seen over a taller box in front, spreads down from the
+    # rim (fresh 5119 of "cluttered table": 8.5 mm from the 5th to the 95th percentile, 6.7 sigma; the 16
+    # lids alone on "cans touching", "cluttered table" and "box hides base" 0-99 and 400-459: 1.9-3.5
+    # sigma, at most 5.6 mm). Only here: a cup's rim whose side tells it (_rim_verdict) is claimed, and
+    # the can under it found (cup on can 5047).
+    if (_open_top(pts[dist <= r + r_eps], cx, cy, r, r_eps, 0.0, z_lid, ctx) or _not_flat(lid[:, 2], sigma)
             or not _rest_hidden(pts[side, :2], cx, cy, r, r_eps, c.min_height + 0.01, hidden_below, ctx)):
         return None, "", None
     mine = free.idx[(dist <= r + r_eps) & (z <= z_lid + s.band_height)]
