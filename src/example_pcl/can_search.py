@@ -620,7 +620,7 @@ def _judge_side(free, cx, cy, r, r_eps, cutoff, sigma, z_lo, z_hi, top, claim, c
     # Inlier fraction of the side below the lid: points inside the disc there are no can's.
     fraction = n_side / max(int(np.count_nonzero((dist <= r + r_eps) & in_run)), 1)
     halves = g.split_circles(sxy, cx, cy, r, c.min_fit_points)
-    ratio = float("nan") if halves is None else max((h[0] for h in halves), default=0.0)
+    ratio = g.halves_ratio(halves)
     # A wider circle over a can's front and an object beside or in front of it (fresh 5134 of
     # "cluttered table": r 39.9 mm over two touching cans, 11 mm off the one of 29.7, rms 2.6 mm; 5113:
     # r 50.5 mm over a can and the cup in front, "not round"): the can's own circle, if it fits better.

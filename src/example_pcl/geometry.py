@@ -775,7 +775,12 @@ def split_ratio(xy, cx, cy, radius, min_points=6):
     rms distance to that circle over the rms distance to the half's own (Kasa) circle. About 1 for
     one round object; well above 1 where the arc joins two (the fronts of two touching cans on a
     wider circle tangent to both). NaN when a half holds fewer than min_points points."""
-    halves = split_circles(xy, cx, cy, radius, min_points)
+    return halves_ratio(split_circles(xy, cx, cy, radius, min_points))
+
+
+def halves_ratio(halves):
+    """split_ratio from split_circles' halves: the larger ratio, 0 when neither half has a circle of its
+    own, NaN for None (a half too small)."""
     return float("nan") if halves is None else max((h[0] for h in halves), default=0.0)
 
 
