@@ -36,7 +36,7 @@ table or a can is lost or the scene changed. It can also leave that search to it
 (``process(xyz, search=False)``): the frame keeps what the refit found, and the search's result
 (:func:`search_frame`, on that frame's copy) is handed back later with ``adopt`` as the seeds of
 the next refit. :class:`BackgroundSearchFinder` does so with the search on an executor (a worker
-thread in can_tracker), so the 10-20 ms search leaves the frame path. Every length is in metres.
+thread in can_tracker), so the search (20-45 ms a real frame) leaves the frame path. Every length is in metres.
 """
 import dataclasses
 import math
