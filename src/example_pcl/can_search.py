@@ -644,7 +644,10 @@ def _judge_side(free, cx, cy, r, r_eps, cutoff, sigma, z_lo, z_hi, top, claim, c
             return None, why, claim(z_from=max(base, z_lo), hollow=True)
         return None, (f"only {100 * fraction:.0f}% of the side within {1e3 * r_eps:.1f} mm of the circle "
                       f"(min {100 * c.min_inlier_fraction:.0f}%)"), None
-    arc = g.arc_coverage(sxy, cx, cy)
+    # Over the side's points with another within reach: a stray point or two far round the circle (the
+    # edge of a box's side face) would stretch it (fresh 5004 of "cluttered table": 0.4 rad of a box's
+    # front and two points of its side 0.5 rad beyond made 2.06).
+    arc = g.arc_coverage(sxy[_not_stray(pts[side], r_eps, ctx)], cx, cy)
     pinned = False
     if arc < c.min_arc and not (arc >= s.min_hidden_arc and _in_front(cx, cy, r, base, top, ctx)) \
             and not (arc >= min_occluded_arc and _rest_hidden(sxy, cx, cy, r, r_eps, base, z_end, ctx)):
@@ -702,6 +705,13 @@ def _judge_side(free, cx, cy, r, r_eps, cutoff, sigma, z_lo, z_hi, top, claim, c
               center_plane=np.array([cx, cy]), shape_error=shape, indices=mine, support=support,
               base_seen=base_seen, support_height=float(base_z))
     return can, None, None
+
+
+def _not_stray(points, r_eps, ctx):
+    """Which of a side's points (float (N, 3), plane frame, m) have another within max(2 r_eps, 3 grid
+    spacings) (m): a side is a surface, each point has neighbours in its column at least."""
+    spacing = 3 * ctx.ray_angle * float(np.linalg.norm(points.mean(axis=0) - ctx.sensor))
+    return cKDTree(points).query_ball_point(points, max(2 * r_eps, spacing), return_length=True) > 1
 
 
 def _no_cans_radius(free, side, cx, cy, r, r_eps, claim, ctx, split):

@@ -1384,7 +1384,8 @@ def test_a_tapered_round_object_is_rejected_as_tapered_and_a_can_is_not():
 # points on the circle refitted to its rim and side, too few to judge a side by, and dropped (cans touching
 # 5731; too few is hidden, verify's _TooFew). A can's lid at 128 mm touching a box's top at 132, its side hidden
 # by the box: the lid went with the top, within a lid's 5 mm of it (can touching box 5035; a box's top is its
-# own height within 3 sigma).
+# own height within 3 sigma). A box's front seen over 0.4 rad and two stray points of its side 0.5 rad beyond:
+# a side over 2.06 rad, a false can (cluttered table 5004; a side's arc is over its points with neighbours).
 @pytest.mark.parametrize("case, seed", [("can touching box", 2), ("can touching box", 12), ("can touching box", 28),
                                         ("can touching box", 1), ("can touching box", 47),
                                         ("can touching box", 45), ("can touching box", 57), ("can touching box", 97),
@@ -1413,7 +1414,7 @@ def test_a_tapered_round_object_is_rejected_as_tapered_and_a_can_is_not():
                                         ("cluttered table", 5113), ("cluttered table", 5134),
                                         ("can touching box", 5342), ("cluttered table", 5329),
                                         ("cluttered table", 5119), ("cans touching", 5731),
-                                        ("can touching box", 5035)])
+                                        ("can touching box", 5035), ("cluttered table", 5004)])
 def test_development_misses_are_found_where_they_stand(case, seed):
     """Every can of these generated scenes is found within 3 mm of its axis, on its support (base
     within 1 cm, height within 1.5 cm of the truth), and no other upright can is reported."""
@@ -1496,6 +1497,23 @@ def test_a_lid_is_flat_a_rim_over_an_inner_wall_is_not(sigma):
     wall = max(0.010, 8 * sigma)
     rim_and_wall = np.r_[0.088 + sigma * rng.standard_normal(120), rng.uniform(0.088 - wall, 0.088, 80)]
     assert cs._not_flat(rim_and_wall, sigma)
+
+
+def test_stray_points_do_not_stretch_a_sides_arc():
+    """_not_stray: a side seen over 0.4 rad (columns and rows 4 mm apart, r 39 mm) and two points 21 mm
+    apart 0.5 rad beyond it (the edge of a box's side face, fresh 5004 of "cluttered table", where they
+    made the arc 2.06 rad and a box a can): the side's points stay, the two go, the arc is the side's."""
+    r = 0.039
+    angles = np.linspace(-1.77, -1.37, 5)
+    side = np.array([[r * np.cos(a), r * np.sin(a), z] for a in angles for z in np.arange(0.02, 0.09, 0.004)])
+    stray = np.array([[r * np.cos(a), r * np.sin(a), z] for a, z in ((-0.87, 0.05), (-0.33, 0.07))])
+    points = np.vstack([side, stray])
+    ctx = cs._Context(config=af.AutoConfig(), search=cs.CylinderSearchConfig(), T_sensor_from_plane=np.eye(4),
+                      sensor=np.array([0.0, -0.8, 0.6]), standing=points, rng=np.random.default_rng(0), found=[])
+    kept = cs._not_stray(points, 0.003, ctx)
+    assert kept[:len(side)].all() and not kept[len(side):].any()
+    assert g.arc_coverage(points[:, :2], 0.0, 0.0) > 1.4
+    assert g.arc_coverage(points[kept, :2], 0.0, 0.0) == pytest.approx(0.4)
 
 
 def assert_upright_cans_found(case, seed, max_off, max_height_error=np.inf):
