@@ -709,6 +709,25 @@ def circle_rms(xy, cx, cy, radius):
     return np.sqrt(np.mean((np.hypot(xy[:, 0] - cx, xy[:, 1] - cy) - radius) ** 2))
 
 
+def radius_standard_error(xy, cx, cy, radius):
+    """The standard error (m) of a circle's radius (cx, cy, radius: m) fitted to points xy (float (N,
+    2), m), from its residuals and Jacobian: millimetres less for a side seen over a wide arc, up to
+    centimetres for a narrow one that hardly fixes its curvature. inf for fewer than 4 points or a
+    degenerate fit."""
+    xy = np.asarray(xy, dtype=float)[:, :2]
+    dx, dy = xy[:, 0] - cx, xy[:, 1] - cy
+    dist = np.hypot(dx, dy)
+    if len(xy) < 4 or not np.all(dist > 0):
+        return float("inf")
+    residual = dist - radius
+    jacobian = np.column_stack([-dx / dist, -dy / dist, -np.ones(len(xy))])
+    try:
+        covariance = np.linalg.inv(jacobian.T @ jacobian) * (residual @ residual / (len(xy) - 3))
+    except np.linalg.LinAlgError:
+        return float("inf")
+    return float(np.sqrt(max(covariance[2, 2], 0.0)))
+
+
 def line_ratio(xy, cx, cy, radius):
     """How much better the circle of `radius` about (cx, cy) (m) explains points (float (N, 2), m)
     than their own best line (dimensionless): the rms distance to that line over the rms distance
