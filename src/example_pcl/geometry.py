@@ -711,9 +711,9 @@ def circle_rms(xy, cx, cy, radius):
 
 def radius_standard_error(xy, cx, cy, radius):
     """The standard error (m) of a circle's radius (cx, cy, radius: m) fitted to points xy (float (N,
-    2), m), from its residuals and Jacobian: millimetres less for a side seen over a wide arc, up to
-    centimetres for a narrow one that hardly fixes its curvature. inf for fewer than 4 points or a
-    degenerate fit."""
+    2), m), from its residuals and Jacobian (linearised: a lower bound over a narrow arc): a fraction of
+    a millimetre for a side seen over a wide arc, up to centimetres for a narrow one that hardly fixes
+    its curvature. inf for fewer than 4 points or a degenerate fit."""
     xy = np.asarray(xy, dtype=float)[:, :2]
     dx, dy = xy[:, 0] - cx, xy[:, 1] - cy
     dist = np.hypot(dx, dy)
