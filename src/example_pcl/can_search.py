@@ -721,7 +721,9 @@ def _not_stray(points, r_eps, ctx):
     """Which of a side's points (float (N, 3), plane frame, m) have another within max(2 r_eps, 3 grid
     spacings) (m): a side is a surface, each point has neighbours in its column at least."""
     spacing = 3 * ctx.ray_angle * float(np.linalg.norm(points.mean(axis=0) - ctx.sensor))
-    return cKDTree(points).query_ball_point(points, max(2 * r_eps, spacing), return_length=True) > 1
+    # The nearest other point only (k=2: itself first): counting all within reach costs a dense side more.
+    nearest, _ = cKDTree(points).query(points, k=2, distance_upper_bound=max(2 * r_eps, spacing))
+    return np.isfinite(nearest[:, 1])
 
 
 def _no_cans_radius(free, side, cx, cy, r, r_eps, claim, ctx, split):
