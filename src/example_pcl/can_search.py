@@ -116,8 +116,9 @@ class CylinderSearchConfig:
     circle is tangent to; inner_split: above this ratio, the half's own circle, when a can's radius and
     more than r_eps smaller, is verified, and its can taken if its rms is lower (a wider circle over a
     can's front and a neighbour's side beside it).
-    max_radius_error: a side its lid's rim does not pin fixes its circle's radius to this (the
-    standard error, m: geometry.radius_standard_error), or is too narrow to tell a can by.
+    max_radius_error: a side its lid's rim does not pin, and a lid seen alone its side does not pin,
+    fixes its circle's radius to this (the standard error, m: geometry.radius_standard_error), or is
+    too narrow (or too noisy) to tell a can by.
     lid_arc (rad): a can seen by its lid alone (its side hidden behind an object in front) shows the
     lid's rim over at least this on the half away from the sensor (_lid_only); lid_levels: the
     heights tried for such a lid, fullest first (a box beside it may have more points at its top's
@@ -1484,11 +1485,12 @@ def _lid_judged(free, z_lid, lid, sigma, r_eps, ctx):
     rim = g.rim_circle(lid, ctx.sensor[:2], r_eps)
     if rim is None or len(rim.outline) < c.shape_bins:
         return None, "", None
+    by_side = None
     if not _lid_rim(rim, lid, sigma, r_eps, ctx):
         # A lid the can in front cuts short shows its rim over less than lid_arc: pinned by the stripe
         # of side under it ("cans touching" 2408, development 73 of "cluttered table"), or, with no
         # such stripe, judged as it is if something in front stands higher (_lid_rim's shaded).
-        pinned = _rim_pinned_by_side(rim, pts, z_lid, lid, sigma, r_eps, ctx)
+        pinned = by_side = _rim_pinned_by_side(rim, pts, z_lid, lid, sigma, r_eps, ctx)
         if pinned is None and not _lid_rim(rim, lid, sigma, r_eps, ctx, shaded=True):
             # A lid seen sparsely (far, a few points per sector of the outline) has outline samples
             # well inside its rim; judged on the rest too, those on the hull of its points (fresh 5134
@@ -1544,8 +1546,14 @@ def _lid_judged(free, z_lid, lid, sigma, r_eps, ctx):
     # lids alone on "cans touching", "cluttered table" and "box hides base" 0-99 and 400-459: 1.9-3.5
     # sigma, at most 5.6 mm). Only here: a cup's rim whose side tells it (_rim_verdict) is claimed, and
     # the can under it found (cup on can 5047).
+    # Nor does a rim alone over a short arc of noisy samples fix its radius, as a side its lid does not pin
+    # does not (verify's max_radius_error: fresh 6203 of "cluttered table", a prism's top between two cans, its
+    # rim over 1.8 rad, 11 samples, r 25.5 mm +- 6.4; the 24 cans seen by their lids alone on "cans touching",
+    # "cluttered table" and "box hides base" 0-99, 400-499 and held-out 600-609 to 1900-1909: 0.6-2.1 mm).
     if (_open_top(pts[dist <= r + r_eps], cx, cy, r, r_eps, 0.0, z_lid, ctx) or _not_flat(lid[:, 2], sigma)
-            or not _rest_hidden(pts[side, :2], cx, cy, r, r_eps, c.min_height + 0.01, hidden_below, ctx)):
+            or not _rest_hidden(pts[side, :2], cx, cy, r, r_eps, c.min_height + 0.01, hidden_below, ctx)
+            or (by_side is None and g.radius_standard_error(far[rim.kept], cx, cy, rim.outline_radius)
+                > s.max_radius_error)):
         return None, "", None
     mine = free.idx[(dist <= r + r_eps) & (z <= z_lid + s.band_height)]
     return Can(T_sensor_from_can=g.can_pose(ctx.T_sensor_from_plane, cx, cy, 0.0), radius=r, height=z_lid,
