@@ -1126,7 +1126,8 @@ def _handle(points, cx, cy, dist, r, r_eps, base, top, ctx):
     """Why it has a handle (a mug), or "": points just outside the circle within its height, some
     more than open_depth below the top, spanning 2 r_eps of height or more, on an arc narrower than
     max_handle_arc, none of them reaching down to the support or above the top (a box or can
-    touching it stands on the table or is taller)."""
+    touching it stands on the table or is taller), nor ending, further out or lower, where
+    something nearer the sensor hides where it would go on."""
     s = ctx.search
     # Whether it reaches further is judged on every point standing on the table around it too, not
     # only the cluster's free ones: a cup touching the can, rejected before it, took its points with
@@ -1175,6 +1176,17 @@ def _handle(points, cx, cy, dist, r, r_eps, base, top, ctx):
         others = (dist > r + r_eps) & ~(span & (dist <= r + s.handle_reach + 2 * r_eps))
         if np.mean(g.behind(tip, around[others], ctx.sensor)) > 0.5:
             return ""
+    # So too where its lower end lies behind something nearer, which may stand well beyond the handle's
+    # reach (any standing point but the can's and the handle's own): it may go on down to the support (a
+    # cup 4 mm from the can, its front wall seen between the can and a taller one in front that hides the
+    # rest of it: fresh 5445 of "cluttered table").
+    foot = around[mid & (z <= z[mid].min() + 2 * r_eps)] - (0.0, 0.0, 0.01)
+    standing = ctx.standing
+    reach = np.hypot(standing[:, 0] - cx, standing[:, 1] - cy)
+    in_span = (np.arctan2(standing[:, 1] - cy, standing[:, 0] - cx) - start) % (2 * np.pi) <= arc + 1e-9
+    occluders = standing[(reach > r + r_eps) & ~(in_span & (reach <= r + s.handle_reach + 2 * r_eps))]
+    if np.mean(g.behind(foot, occluders, ctx.sensor)) > 0.5:
+        return ""
     return (f"handle: {int(mid.sum())} points stick out of the side over {arc:.2f} rad without reaching the "
             "support (a mug)")
 
