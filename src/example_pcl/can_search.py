@@ -1173,7 +1173,7 @@ def _handle(points, cx, cy, dist, r, r_eps, base, top, ctx):
         tip = around[outer]
         radial = (tip[:, :2] - (cx, cy)) / dist[outer, None]
         tip[:, :2] += 0.01 * radial
-        others = (dist > r + r_eps) & ~(span & (dist <= r + s.handle_reach + 2 * r_eps))
+        others = _neither_can_nor_handle(dist, angle, r, r_eps, start, arc, s.handle_reach)
         if np.mean(g.behind(tip, around[others], ctx.sensor)) > 0.5:
             return ""
     # So too where its lower end lies behind something nearer, which may stand well beyond the handle's
@@ -1182,13 +1182,20 @@ def _handle(points, cx, cy, dist, r, r_eps, base, top, ctx):
     # rest of it: fresh 5445 of "cluttered table").
     foot = around[mid & (z <= z[mid].min() + 2 * r_eps)] - (0.0, 0.0, 0.01)
     standing = ctx.standing
-    reach = np.hypot(standing[:, 0] - cx, standing[:, 1] - cy)
-    in_span = (np.arctan2(standing[:, 1] - cy, standing[:, 0] - cx) - start) % (2 * np.pi) <= arc + 1e-9
-    occluders = standing[(reach > r + r_eps) & ~(in_span & (reach <= r + s.handle_reach + 2 * r_eps))]
-    if np.mean(g.behind(foot, occluders, ctx.sensor)) > 0.5:
+    sx, sy = standing[:, 0] - cx, standing[:, 1] - cy
+    others = _neither_can_nor_handle(np.hypot(sx, sy), np.arctan2(sy, sx), r, r_eps, start, arc, s.handle_reach)
+    if np.mean(g.behind(foot, standing[others], ctx.sensor)) > 0.5:
         return ""
     return (f"handle: {int(mid.sum())} points stick out of the side over {arc:.2f} rad without reaching the "
             "support (a mug)")
+
+
+def _neither_can_nor_handle(dist, angle, r, r_eps, start, arc, reach):
+    """Which points, by their distance (m) from a can's axis and angle (rad) about it, may hide where a
+    handle goes on: not the can's (within r + r_eps), nor the handle's own (within its arc of `arc`
+    rad from `start`, out to r + reach + 2 r_eps, m)."""
+    in_arc = (angle - start) % (2 * np.pi) <= arc + 1e-9
+    return (dist > r + r_eps) & ~(in_arc & (dist <= r + reach + 2 * r_eps))
 
 
 def _reached(points, start, allowed, step):
