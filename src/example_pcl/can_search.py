@@ -9,10 +9,10 @@ and measured figures are in docs/can_search.md; in short, per cluster and round:
    an anchor and two points within the diameter of a can of a radius drawn per anchor), radius
    within [min_radius, max_radius], from a pool drawn with weights that favour walls (a side piles
    many points into one ``wall_cell`` square seen from above, a lid one layer), but none on a box's
-   flat faces (long straight runs seen from above). The ones with most pool points within r_eps on
-   their half facing the sensor (less those inside the circle at its side's heights) are verified,
-   best first, each sharing at most half its points with one taken before (circles through one box
-   face count once).
+   flat faces (long straight runs seen from above). The ones with most pool points off those faces
+   within r_eps on their half facing the sensor (less those inside the circle at its side's
+   heights) are verified, best first, each sharing at most half its points with one taken before
+   (circles through one box face count once).
 2. **Grow along the axis.** The points are split into height bands (``band_height``); starting
    from the band where the circle holds most points, the run of bands grows down and up while
    each band still has points on the circle (at least ``band_fraction`` of the start band's) and
@@ -1261,15 +1261,16 @@ def _suppressed_by(circles, others, xy, eps, sensor, max_overlap=0.5):
 
 def _draws(xy, z_pool, face, tried, tried_circles, r_eps, ctx):
     """A round's circle hypotheses, drawn in turn as the search asks for them: (cx, cy, r, z0, and
-    the pool points (x, y) and heights they are scored on). First from the pool points xy, z_pool
-    (m, plane frame) not on a flat face; then up to `retries` draws from the points the circles
-    tried (`tried`, a bool mask updated in place by the caller) did not explain, a big box's faces
-    crowding out a small can's triplets, skipped when fewer than 3 are left; last, the first draw's
-    circles that one tried (`tried_circles`, (cx, cy, r) each) took out of the first choice as
-    sharing its points though elsewhere (_suppressed_by: a circle through a can's front and a tall
-    box's edge verified first and failed, its points the can's own circles'; held-out 606 "can
-    touching box"), scored on the pool points not on a flat face (a box's face beside a thin can
-    outscored its circles with a wider one through both; held-out 1708 "can touching box")."""
+    the pool points (x, y) and heights they are scored on). Drawn from and scored on the pool points
+    xy, z_pool (m, plane frame) not on a flat face: a box's face beside a thin can outscored its
+    circles with a wider one through both (held-out 1708 "can touching box"), or carried a circle
+    tangent to it through the box's corner past those of the can touching its end (fresh 6019).
+    First from all of them; then up to `retries` draws from the points the circles tried (`tried`, a
+    bool mask updated in place by the caller) did not explain, a big box's faces crowding out a small
+    can's triplets, skipped when fewer than 3 are left; last, the first draw's circles that one tried
+    (`tried_circles`, (cx, cy, r) each) took out of the first choice as sharing its points though
+    elsewhere (_suppressed_by: a circle through a can's front and a tall box's edge verified first and
+    failed, its points the can's own circles'; held-out 606 "can touching box")."""
     c, s = ctx.config, ctx.search
     first = None
     for attempt in range(1 + s.retries):
@@ -1280,7 +1281,7 @@ def _draws(xy, z_pool, face, tried, tried_circles, r_eps, ctx):
         circles = circle_hypotheses(axy[drawn], az[drawn], s.hypotheses, ctx.rng, c.min_radius, c.max_radius + r_eps,
                                     s.hypothesis_slice)
         first = circles if first is None else first
-        yield (*circles, axy, az)
+        yield (*circles, axy[drawn], az[drawn])
     keep = _suppressed_by(first[:3], tried_circles, xy, r_eps, ctx.sensor)
     yield (*(a[keep] for a in first), xy[~face], z_pool[~face])
 

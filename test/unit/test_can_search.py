@@ -112,6 +112,29 @@ def test_the_last_draw_retries_a_circle_a_tried_one_took_out_but_none_like_one_t
     assert kept.tolist() == [False, True, False]
 
 
+def test_the_first_draw_ranks_its_circles_on_the_points_off_the_flat_faces(monkeypatch):
+    """A box's long front face (flat, 115 mm), its short side face (50 mm, too short to be flat) and a
+    can of r 39 mm touching the face's end, its front in line with it (fresh 6019 of "can touching
+    box"): ranked on the pool points off the faces, the can's own circle comes first, not a circle of
+    40 mm tangent to the face through the box's corner, which the face's points would carry."""
+    rng = np.random.default_rng(11)
+    front = np.c_[np.linspace(-0.12, -0.005, 70), np.zeros(70)]
+    side = np.c_[np.full(14, -0.12), np.linspace(0.008, 0.05, 14)]
+    angle = np.radians(np.linspace(-150, -30, 15))
+    can = np.c_[0.034 + 0.039 * np.cos(angle), 0.039 + 0.039 * np.sin(angle)]
+    xy = np.concatenate([front, side, can]) + rng.normal(0, 0.0007, (99, 2))
+    z = rng.uniform(0.01, 0.12, len(xy))
+    r_eps = 0.006
+    face = cs.flat_faces(xy, 0.5 * r_eps, 0.06, 12, rng, radii=RADII)
+    assert face[:70].mean() > 0.9 and not face[70:].any()
+    ctx = cs._Context(config=af.AutoConfig(), search=cs.CylinderSearchConfig(), T_sensor_from_plane=np.eye(4),
+                      sensor=np.array([0.0, -0.8, 0.7]), standing=np.c_[xy, z], rng=rng, found=[])
+    circles = np.array([0.034, -0.08]), np.array([0.039, 0.04]), np.array([0.039, 0.04]), np.array([0.075, 0.075])
+    monkeypatch.setattr(cs, "circle_hypotheses", lambda *args, **kwargs: circles)
+    cx, cy, r, _, axy, az = next(cs._draws(xy, z, face, np.zeros(len(xy), bool), [], r_eps, ctx))
+    assert cs.best_circles(axy, cx, cy, r, r_eps, 1, sensor=ctx.sensor, z=az) == [0]
+
+
 def test_band_run_grows_from_the_fullest_side_band_over_small_gaps():
     """The run starts at the fullest band with no more inside than on, and stops at a long gap."""
     on = np.array([0, 5, 9, 0, 8, 9, 0, 0, 7, 30])
@@ -1441,7 +1464,7 @@ def test_a_tapered_round_object_is_rejected_as_tapered_and_a_can_is_not():
                                         ("cluttered table", 5119), ("cans touching", 5731),
                                         ("can touching box", 5035), ("cluttered table", 5004),
                                         ("cluttered table", 5028), ("cluttered table", 6203),
-                                        ("cluttered table", 5445)])
+                                        ("cluttered table", 5445), ("can touching box", 6019)])
 def test_development_misses_are_found_where_they_stand(case, seed):
     """Every can of these generated scenes is found within 3 mm of its axis, on its support (base
     within 1 cm, height within 1.5 cm of the truth), and no other upright can is reported."""
