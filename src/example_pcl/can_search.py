@@ -1276,12 +1276,12 @@ def _draws(xy, z_pool, face, tried, tried_circles, r_eps, ctx):
     for attempt in range(1 + s.retries):
         if attempt and np.count_nonzero(~tried) < 3:
             continue
-        axy, az = xy[~tried], z_pool[~tried]
-        drawn = ~face[~tried]
-        circles = circle_hypotheses(axy[drawn], az[drawn], s.hypotheses, ctx.rng, c.min_radius, c.max_radius + r_eps,
+        scored = ~tried & ~face
+        axy, az = xy[scored], z_pool[scored]
+        circles = circle_hypotheses(axy, az, s.hypotheses, ctx.rng, c.min_radius, c.max_radius + r_eps,
                                     s.hypothesis_slice)
         first = circles if first is None else first
-        yield (*circles, axy[drawn], az[drawn])
+        yield (*circles, axy, az)
     keep = _suppressed_by(first[:3], tried_circles, xy, r_eps, ctx.sensor)
     yield (*(a[keep] for a in first), xy[~face], z_pool[~face])
 
