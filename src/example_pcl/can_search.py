@@ -1161,7 +1161,7 @@ def _handle(points, cx, cy, dist, r, r_eps, base, top, ctx):
     if arc > s.max_handle_arc:
         return ""
     start = angle[mid][order[0]]
-    span = (angle - start) % (2 * np.pi) <= arc + 1e-9
+    span = _in_arc(angle, start, arc)
     beyond = (dist > r + s.handle_reach) & (dist <= r + 2 * s.handle_reach)
     if (out & span & ((z <= base + 0.01) | (z >= top + 0.005))).any() or (beyond & span).sum() >= s.min_handle_points:
         return ""  # it reaches the support, the top or further out: another object touching it
@@ -1202,8 +1202,12 @@ def _neither_can_nor_handle(dist, angle, r, r_eps, start, arc, reach):
     """Which points, by their distance (m) from a can's axis and angle (rad) about it, may hide where a
     handle goes on: not the can's (within r + r_eps), nor the handle's own (within its arc of `arc`
     rad from `start`, out to r + reach + 2 r_eps, m)."""
-    in_arc = (angle - start) % (2 * np.pi) <= arc + 1e-9
-    return (dist > r + r_eps) & ~(in_arc & (dist <= r + reach + 2 * r_eps))
+    return (dist > r + r_eps) & ~(_in_arc(angle, start, arc) & (dist <= r + reach + 2 * r_eps))
+
+
+def _in_arc(angle, start, arc):
+    """Which angles (rad) lie on the arc of `arc` rad going counter-clockwise from `start` (rad)."""
+    return (angle - start) % (2 * np.pi) <= arc + 1e-9
 
 
 def _reached(points, start, allowed, step):
@@ -1265,7 +1269,7 @@ def _draws(xy, z_pool, face, tried, tried_circles, r_eps, ctx):
     xy, z_pool (m, plane frame) not on a flat face: a box's face beside a thin can outscored its
     circles with a wider one through both (held-out 1708 "can touching box"), or carried a circle
     tangent to it through the box's corner past those of the can touching its end (fresh 6019).
-    First from all of them; then up to `retries` draws from the points the circles tried (`tried`, a
+    First from all of them; then up to `retries` draws from those the circles tried (`tried`, a
     bool mask updated in place by the caller) did not explain, a big box's faces crowding out a small
     can's triplets, skipped when fewer than 3 are left; last, the first draw's circles that one tried
     (`tried_circles`, (cx, cy, r) each) took out of the first choice as sharing its points though
@@ -1274,9 +1278,9 @@ def _draws(xy, z_pool, face, tried, tried_circles, r_eps, ctx):
     c, s = ctx.config, ctx.search
     first = None
     for attempt in range(1 + s.retries):
-        if attempt and np.count_nonzero(~tried) < 3:
-            continue
         scored = ~tried & ~face
+        if attempt and np.count_nonzero(scored) < 3:
+            continue
         axy, az = xy[scored], z_pool[scored]
         circles = circle_hypotheses(axy, az, s.hypotheses, ctx.rng, c.min_radius, c.max_radius + r_eps,
                                     s.hypothesis_slice)
