@@ -704,6 +704,9 @@ def _judge_side(free, cx, cy, r, r_eps, cutoff, sigma, z_lo, z_hi, top, claim, c
     why = _inside_cup(cx, cy, r, base_z, top, r_eps, ctx)
     if why:
         return None, why, None
+    why = _under_claimed(cx, cy, r, top, r_eps, ctx)
+    if why:
+        return None, why, claim(z_from=lowest)
     # The arc and shape error stay the side's own: the tracker refits a can seen this narrowly by its lid.
     if arc < s.min_hidden_arc and not pinned:
         joint = _pinned_by_lid(pts, sxy, cx, cy, r, top, sigma, r_eps, max_rms, ctx)
@@ -793,10 +796,12 @@ def _pinned_by_lid(pts, side_xy, cx, cy, r, top, sigma, r_eps, max_rms, ctx):
     (N, 3), at height top, as _lid_only takes it), or None to keep it: an arc under min_hidden_arc
     fixes the radius poorly (cans behind others 3-5 mm off their axis, "cans touching" 0 and 75). Only
     when the lid's rim passes _lid_only's tests on the new circle (seen over min_hidden_arc will do
-    when rim and side together span min_arc) and the side lies on it within max_rms (m); rms: the
-    side's on it."""
+    when rim and side together span min_arc) and the side lies on it within max_rms (m), and not by a
+    box's top (filling its rectangle, as _lid_at tells it); rms: the side's on it."""
     lid = _bare_lid(pts, top, sigma, ctx.search.band_height)
-    if len(lid) < ctx.config.min_fit_points:
+    # Far away a box's square top fits a circle within the noise (fresh 6140 of "boxes and prisms": a 4 x 4
+    # cm top 1.26 m away, rms 2.8 mm, pinned a circle in its corner through its front face).
+    if len(lid) < ctx.config.min_fit_points or g.rectangularity(lid[:, :2]) > ctx.search.max_lid_rectangularity:
         return None
     rim = g.rim_circle(lid, ctx.sensor[:2], r_eps)
     joint = None if rim is None else _rim_with_side(rim, side_xy, lid, sigma, r_eps, ctx, side_counts=True)
@@ -847,6 +852,21 @@ def _inside_cup(cx, cy, r, z_lo, z_hi, r_eps, ctx):
         if depth > r_eps and min(z_hi, cup.z_hi) - max(z_lo, cup.z_lo) > 2 * ctx.search.band_height:
             return (f"reaches {1e3 * depth:.0f} mm into a cup or mug (r {1e3 * cup.r:.0f} mm): two objects do not "
                     "share space (its handle)")
+    return ""
+
+
+def _under_claimed(cx, cy, r, top, r_eps, ctx):
+    """Why the circle (cx, cy, r) whose side ends at `top` (m, plane frame) is no can: a round object
+    claimed before on the same circle (centre and radius within r_eps / 4, m) starts there (its
+    lowest point within a band of top), and the wall goes on down under it: that object's lower part
+    (fresh 6128 of "cluttered table": a mug claimed from 61 mm up where its inside showed, its wall
+    below, beside a cup in front, 60 mm high: 0.3 mm and 0.4 mm off its circle); else "". A can under
+    a cup is narrower than it (8 mm on "cup on can")."""
+    for other in ctx.claimed:
+        if (abs(r - other.r) <= 0.25 * r_eps and np.hypot(cx - other.cx, cy - other.cy) <= 0.25 * r_eps
+                and abs(other.z_lo - top) <= ctx.search.band_height):
+            return (f"the lower part of a round object claimed above it (r {1e3 * other.r:.0f} mm, from "
+                    f"{1e3 * other.z_lo:.0f} mm up): its wall goes on down on the same circle")
     return ""
 
 

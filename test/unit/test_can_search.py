@@ -1178,6 +1178,39 @@ def test_an_upside_down_bowls_foot_is_no_can_with_any_search_seed():
             assert result.cans == [], (view, seed, result.message)
 
 
+def _false_cans(case, seed, search_seeds):
+    """(search seed, how many) of the cans found in a generated scene that are none of its true cans
+    (bench_cans.score, within 15 mm), for each of the search's seeds that finds any."""
+    spec = so.case_spec(case, seed)
+    scene = sc.generate_scene(spec)
+    to_plane, cans, lying_cans = bench_cans.generated_truth(spec, scene)
+    false = []
+    for search_seed in search_seeds:
+        config = af.AutoConfig(cylinders=cs.CylinderSearchConfig(seed=search_seed))
+        result = af.find_cans(scene.xyz, config=config)
+        tally = bench_cans.Tally()
+        bench_cans.score(tally, result.cans, cans, lying_cans, to_plane, 0.015)
+        if tally.false:
+            false.append((search_seed, tally.false))
+    return false
+
+
+def test_a_box_tops_rim_pins_no_narrow_side_with_any_search_seed():
+    """Fresh 6140 of "boxes and prisms", search seeds 0-11: a 4 x 4 cm box 1.26 m away, its front face
+    seen over 0.74 rad of a circle of r 24 mm in its corner, its top's outline fitted that circle
+    within the noise (rms 2.8 mm) and pinned it (seeds 8 and 10: a false can). A lid filling its
+    rectangle is a box's top (0.93; _lid_at's rule), and pins no side."""
+    assert _false_cans("boxes and prisms", 6140, range(12)) == []
+
+
+def test_the_lower_part_of_a_claimed_mug_is_no_can_with_any_search_seed():
+    """Fresh 6128 of "cluttered table", search seeds 0-11: a mug behind a cup, its inside seen above
+    60 mm, claimed from there up as hollow; its side below, seen beside the cup over 0.69 rad on the
+    same circle, was a can 60 mm high whose rest the cup hid (seeds 3 and 7). A wall on a claimed
+    object's circle that ends at the claim's foot is that object's."""
+    assert _false_cans("cluttered table", 6128, range(12)) == []
+
+
 def test_points_beyond_the_circle_are_no_far_inner_wall():
     """_open_top: points on the circle's far half 20-40 mm under its top, 3 mm inside the circle (r 40
     mm), are a hollow cylinder's far inner wall; 4 mm outside it they are not (another object's side,
