@@ -35,7 +35,8 @@ and measured figures are in docs/can_search.md; in short, per cluster and round:
    mug, bowl or pot. Handle: points just outside the circle within the can's height, on a narrow
    arc, reaching further below the top than a lid's lip but not down to the support - a mug.
    Inside another: a circle reaching more than r_eps into a cup or mug named before (its handle
-   and the wall beside it) - two objects do not share space.
+   and the wall beside it) - two objects do not share space. Under another: a side on the circle
+   of a round object named before that ends where it starts - its lower part.
 6. The can's points are taken out of the cluster and the next round looks for another one.
 
 Speed: a verification looks only at the free points near its circle (cropped per round from the
@@ -797,11 +798,11 @@ def _pinned_by_lid(pts, side_xy, cx, cy, r, top, sigma, r_eps, max_rms, ctx):
     fixes the radius poorly (cans behind others 3-5 mm off their axis, "cans touching" 0 and 75). Only
     when the lid's rim passes _lid_only's tests on the new circle (seen over min_hidden_arc will do
     when rim and side together span min_arc) and the side lies on it within max_rms (m), and not by a
-    box's top (filling its rectangle, as _lid_at tells it); rms: the side's on it."""
+    box's top (_box_top, as _lid_at tells it); rms: the side's on it."""
     lid = _bare_lid(pts, top, sigma, ctx.search.band_height)
     # Far away a box's square top fits a circle within the noise (fresh 6140 of "boxes and prisms": a 4 x 4
     # cm top 1.26 m away, rms 2.8 mm, pinned a circle in its corner through its front face).
-    if len(lid) < ctx.config.min_fit_points or g.rectangularity(lid[:, :2]) > ctx.search.max_lid_rectangularity:
+    if len(lid) < ctx.config.min_fit_points or _box_top(lid, r_eps, ctx):
         return None
     rim = g.rim_circle(lid, ctx.sensor[:2], r_eps)
     joint = None if rim is None else _rim_with_side(rim, side_xy, lid, sigma, r_eps, ctx, side_counts=True)
@@ -1516,17 +1517,22 @@ def _lid_at(free, band, level, sigma, r_eps, ctx, boxes):
         lid = lid[cKDTree(pts[above, :2]).query_ball_point(lid[:, :2], 0.005, return_length=True) == 0]
     if len(lid) < c.min_fit_points:
         return None, "", None, None
-    # Wider than a can seen from above (a tin's, a box's top), or filling its rectangle as a box's top
-    # does (a lid, even cut short by a straight shadow, fills less: fresh 5048 of "cluttered table", a
-    # 46 x 42 mm box's top behind a taller mug, its rim rms 2.9 mm at 1.2 m, 0.94; the 10 lids alone on
-    # "cans touching" and "cluttered table" 0-99: 0.79-0.84): no lid of one.
-    if (np.any(np.ptp(lid[:, :2], axis=0) > 2 * (c.max_radius + r_eps))
-            or g.rectangularity(lid[:, :2]) > s.max_lid_rectangularity):
+    if _box_top(lid, r_eps, ctx):
         # The top's own height, within 3 sigma: a can's lid a few millimetres off it, touching the box,
         # is no part of it (fresh 5035 of "can touching box": a lid at 128 mm beside a top at 132).
         z_top = float(np.median(lid[:, 2]))
         return None, "", None, rest & (np.abs(z - z_top) <= max(3 * sigma, 0.002))
     return (*_lid_judged(free, z_lid, lid, sigma, r_eps, ctx), None)
+
+
+def _box_top(lid, r_eps, ctx):
+    """Whether a lid's points (float (N, 3), plane frame, m) are no can's: wider than a can seen from
+    above (a tin's, a box's top), or filling their smallest rectangle as a box's top does (a lid, even
+    cut short by a straight shadow, fills less: fresh 5048 of "cluttered table", a 46 x 42 mm box's top
+    behind a taller mug, its rim rms 2.9 mm at 1.2 m, 0.94; the 10 lids alone on "cans touching" and
+    "cluttered table" 0-99: 0.79-0.84). r_eps (m): the circle's tolerance there."""
+    return bool(np.any(np.ptp(lid[:, :2], axis=0) > 2 * (ctx.config.max_radius + r_eps))
+                or g.rectangularity(lid[:, :2]) > ctx.search.max_lid_rectangularity)
 
 
 def _lid_judged(free, z_lid, lid, sigma, r_eps, ctx):
