@@ -520,6 +520,34 @@ def behind(places, occluders, sensor, cone=0.01, margin=0.01):
     return (close & (ranges[:, None] < q_range[None, :] - margin)).any(axis=0)
 
 
+def seen_through(points, sensor, cx, cy, r, z_lo, z_hi):
+    """Which of the points (float (K, 3), m, plane frame) are seen from the sensor ((3,), same frame)
+    through the solid upright cylinder of axis (cx, cy), radius r and heights z_lo to z_hi (m): their
+    sight line passes through it or ends inside it. bool (K,)."""
+    points = np.asarray(points, dtype=float).reshape(-1, 3)
+    s = np.asarray(sensor, dtype=float)
+    d = points - s
+    # Where the line s + t d (0 <= t <= 1) is within r of the axis (a t^2 + b t + c <= 0) and between
+    # the heights; the two intervals of t overlap.
+    ox, oy = s[0] - cx, s[1] - cy
+    a = d[:, 0] ** 2 + d[:, 1] ** 2
+    b = 2.0 * (d[:, 0] * ox + d[:, 1] * oy)
+    c = ox * ox + oy * oy - r * r
+    disc = b * b - 4.0 * a * c
+    ok = (disc > 0) & (a > 0)
+    root = np.sqrt(np.where(ok, disc, 0.0))
+    a2 = np.where(ok, 2.0 * a, 1.0)
+    t0, t1 = (-b - root) / a2, (-b + root) / a2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u0, u1 = (z_lo - s[2]) / d[:, 2], (z_hi - s[2]) / d[:, 2]
+    flat = d[:, 2] == 0
+    lo = np.where(flat, np.where((s[2] >= z_lo) & (s[2] <= z_hi), -np.inf, np.inf), np.minimum(u0, u1))
+    hi = np.where(flat, np.where((s[2] >= z_lo) & (s[2] <= z_hi), np.inf, -np.inf), np.maximum(u0, u1))
+    start = np.maximum.reduce([t0, lo, np.zeros(len(points))])
+    end = np.minimum.reduce([t1, hi, np.ones(len(points))])
+    return ok & (start < end)
+
+
 def _angular_span(angle):
     """2 pi minus the widest gap between angles (rad, any order): 0 for fewer than 2."""
     return angular_order(angle)[1] if len(angle) >= 2 else 0.0

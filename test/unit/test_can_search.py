@@ -1211,23 +1211,36 @@ def test_the_lower_part_of_a_claimed_mug_is_no_can_with_any_search_seed():
     assert _false_cans("cluttered table", 6128, range(12)) == []
 
 
+def test_a_cups_inner_wall_seen_through_a_small_circle_makes_it_no_can():
+    """Fresh 6735 of "cluttered table": a cup (r 35.9 mm) behind a lower tin, its near wall seen over
+    0.95 rad and fitted 6 mm small (r 29.9 mm); its far inner wall lay just outside that circle, no
+    "far inner wall" of it, but a solid can there would hide it (48 points seen through it). No false
+    can, the scene's two cans found."""
+    assert _false_cans("cluttered table", 6735, [0]) == []
+    scene = sc.generate_scene(so.case_spec("cluttered table", 6735))
+    assert len(af.find_cans(scene.xyz).cans) == 2
+
+
 def test_points_beyond_the_circle_are_no_far_inner_wall():
-    """_open_top: points on the circle's far half 20-40 mm under its top, 3 mm inside the circle (r 40
+    """_open_top: points on the circle's far half 30 mm under its top, 3 mm inside the circle (r 40
     mm), are a hollow cylinder's far inner wall; 4 mm outside it they are not (another object's side,
-    beyond a circle a can touching it pulled wide: fresh held-out 3206 of "cluttered table")."""
+    beyond a circle a can touching it pulled wide: fresh held-out 3206 of "cluttered table"), seen
+    from above (0.2 m off the axis, 0.8 m up). Seen from lower (0.8 m off, 0.6 m up), a solid can
+    there would hide them: seen through it, they make it hollow too."""
     r, top = 0.04, 0.10
     near_angle = np.radians(np.linspace(-150, -30, 8))
     z = np.linspace(0.055, 0.095, 5)
     near = np.array([[r * np.cos(a), r * np.sin(a), h] for a in near_angle for h in z])
     far_angle = np.radians(np.linspace(60, 120, 10))
-    for dr, hollow in ((-0.003, True), (0.004, False)):
+    for dr, sensor, reason in ((-0.003, (0.0, -0.2, 0.8), "points on the far inner wall"),
+                               (0.004, (0.0, -0.2, 0.8), None),
+                               (0.004, (0.0, -0.8, 0.6), "points seen through")):
         far = np.array([[(r + dr) * np.cos(a), (r + dr) * np.sin(a), 0.07] for a in far_angle])
         points = np.vstack([near, far])
         ctx = cs._Context(config=af.AutoConfig(), search=cs.CylinderSearchConfig(), T_sensor_from_plane=np.eye(4),
-                          sensor=np.array([0.0, -0.8, 0.6]), standing=points, rng=np.random.default_rng(0),
-                          found=[])
+                          sensor=np.array(sensor), standing=points, rng=np.random.default_rng(0), found=[])
         why = cs._open_top(points, 0.0, 0.0, r, 0.006, 0.0, top, ctx)
-        assert why.startswith("open top") if hollow else why == "", (dr, why)
+        assert (why.startswith("open top") and reason in why) if reason else why == "", (dr, sensor, why)
 
 
 def test_a_can_whose_circle_a_touching_can_pulls_wide_is_no_cup():

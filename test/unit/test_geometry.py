@@ -789,6 +789,27 @@ def test_behind_needs_an_occluder_on_the_ray_and_nearer():
     assert_array_equal(g.behind(places, np.empty((0, 3)), sensor), [False, False])
 
 
+def test_seen_through_a_solid_cylinder():
+    """A point is seen through the cylinder (r 40 mm, 0-100 mm high, sensor 1 m off, 0.5 m up) when its
+    sight line crosses it or ends inside it; not beside it, above its top's shadow, or in front."""
+    sensor = np.array([-1.0, 0.0, 0.5])
+    points = np.array([
+        [0.1, 0.0, 0.05],  # behind it, low: hidden by it
+        [0.0, 0.0, 0.05],  # inside it
+        [0.05, 0.0, 0.3],  # behind it, above its top's sight line
+        [0.1, 0.1, 0.05],  # behind it, beside its outline
+        [-0.1, 0.0, 0.05],  # in front of it
+        [0.045, 0.0, 0.09],  # just beyond its far side under the top: the sight line crosses the top disc
+    ])
+    assert_array_equal(g.seen_through(points, sensor, 0.0, 0.0, 0.04, 0.0, 0.1),
+                       [True, True, False, False, False, True])
+    # From straight above, a point under the top disc is seen through it; one beside it is not.
+    above = np.array([0.0, 0.0, 1.0])
+    assert_array_equal(g.seen_through(np.array([[0.01, 0.0, 0.05], [0.05, 0.0, 0.05]]), above, 0.0, 0.0, 0.04, 0.0,
+                                      0.1), [True, False])
+    assert g.seen_through(np.empty((0, 3)), sensor, 0.0, 0.0, 0.04, 0.0, 0.1).shape == (0,)
+
+
 def test_rectangularity_tells_a_boxs_top_from_a_lid():
     """Points on a lid (a disc of r 30 mm, 3 mm apart) fill pi / 4 of their smallest rectangle, cut
     short by a straight edge about 0.85 at most; a 46 x 42 mm box's top, turned by 0.7 rad, nearly all
