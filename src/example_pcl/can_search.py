@@ -1376,12 +1376,11 @@ def search_cluster(points, ctx):
             cans.append(can)
             ctx.found.append(can)
             free[can.indices] = False
-            rest = np.flatnonzero(free)
+        elif claim is None:
             break
-        if claim is None:
-            break
-        rejections.append(Rejection(centroid=points[claim].mean(axis=0), n_points=len(claim), reason=reason))
-        free[claim] = False
+        else:
+            rejections.append(Rejection(centroid=points[claim].mean(axis=0), n_points=len(claim), reason=reason))
+            free[claim] = False
         last = _rounds(points, bands, free, cans, rejections, ctx) or last
         rest = np.flatnonzero(free)
     if len(rest) >= c.min_fit_points or not (cans or rejections):
