@@ -31,13 +31,15 @@ and measured figures are in docs/can_search.md; in short, per cluster and round:
    point, or the image's edge cutting off the side's lowest points: base hidden, inferred on the
    table (``base_seen`` False). Else it floats: rejected.
 5. **Not a can.** Open top: points within the circle on its far half (away from the sensor) below
-   the rim, or inside the disc well below the rim - the inside of a hollow cylinder, so a cup,
-   mug, bowl or pot. Handle: points just outside the circle within the can's height, on a narrow
-   arc, reaching further below the top than a lid's lip but not down to the support - a mug.
+   the rim, inside the disc well below the rim, or seen through where a solid one would stand -
+   the inside of a hollow cylinder, so a cup, mug, bowl or pot. Handle: points just outside the
+   circle within the can's height, on a narrow arc, reaching further below the top than a lid's
+   lip but not down to the support - a mug.
    Inside another: a circle reaching more than r_eps into a cup or mug named before (its handle
    and the wall beside it) - two objects do not share space. Under another: a side on the circle
    of a round object named before that ends where it starts - its lower part.
-6. The can's points are taken out of the cluster and the next round looks for another one.
+6. The can's points are taken out of the cluster and the next round looks for another one. When
+   none is found, a can seen by its lid alone (or a cup by its rim), and the rounds again.
 
 Speed: a verification looks only at the free points near its circle (cropped per round from the
 cluster's, height bands computed once per cluster), fits by geometry.fit_circles_algebraic and

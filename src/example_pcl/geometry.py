@@ -540,9 +540,10 @@ def seen_through(points, sensor, cx, cy, r, z_lo, z_hi):
     t0, t1 = (-b - root) / a2, (-b + root) / a2
     with np.errstate(divide="ignore", invalid="ignore"):
         u0, u1 = (z_lo - s[2]) / d[:, 2], (z_hi - s[2]) / d[:, 2]
-    flat = d[:, 2] == 0
-    lo = np.where(flat, np.where((s[2] >= z_lo) & (s[2] <= z_hi), -np.inf, np.inf), np.minimum(u0, u1))
-    hi = np.where(flat, np.where((s[2] >= z_lo) & (s[2] <= z_hi), np.inf, -np.inf), np.maximum(u0, u1))
+    # A level sight line stays at the sensor's height: between the heights all along, or never.
+    level, between = d[:, 2] == 0, z_lo <= s[2] <= z_hi
+    lo = np.where(level, -np.inf if between else np.inf, np.minimum(u0, u1))
+    hi = np.where(level, np.inf if between else -np.inf, np.maximum(u0, u1))
     start = np.maximum.reduce([t0, lo, np.zeros(len(points))])
     end = np.minimum.reduce([t1, hi, np.ones(len(points))])
     return ok & (start < end)

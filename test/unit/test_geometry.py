@@ -807,6 +807,10 @@ def test_seen_through_a_solid_cylinder():
     above = np.array([0.0, 0.0, 1.0])
     assert_array_equal(g.seen_through(np.array([[0.01, 0.0, 0.05], [0.05, 0.0, 0.05]]), above, 0.0, 0.0, 0.04, 0.0,
                                       0.1), [True, False])
+    # A level sight line: through it at its height, over it above.
+    for z, through in ((0.05, True), (0.5, False)):
+        level = g.seen_through(np.array([[1.0, 0.0, z]]), np.array([-1.0, 0.0, z]), 0.0, 0.0, 0.04, 0.0, 0.1)
+        assert level[0] == through
     assert g.seen_through(np.empty((0, 3)), sensor, 0.0, 0.0, 0.04, 0.0, 0.1).shape == (0,)
 
 
