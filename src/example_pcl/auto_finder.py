@@ -368,7 +368,8 @@ def _search_cylinders(pts, T, viewpoint, config):
     box = g.image_box(grid[..., 2]) if grid.ndim == 3 else None
     edge = None if box is None else standing[g.on_image_edge(standing_idx, grid.shape[1], box)].astype(float)
     found, rejections = can_search.search(points, standing, T, sensor_plane, config,
-                                          ray_angle=g.ray_angle(grid, viewpoint), image_edge=edge)
+                                          ray_angle=g.ray_angle(grid, viewpoint), image_edge=edge,
+                                          beyond_image=None if box is None else _beyond_image(grid, T, box))
     found = [(k, _with_hidden_ends(can, in_plane, standing_idx, clusters[k], T_plane_from_sensor, sensor_plane,
                                    config) if can.lying else can) for k, can in found]
     cans = [dataclasses.replace(can, indices=_grid_indices(clusters[k][can.indices], in_plane.shape[:-1],
@@ -378,6 +379,21 @@ def _search_cylinders(pts, T, viewpoint, config):
     cans.sort(key=lambda c: -c.n_fit_points)
     t3 = time.perf_counter()
     return cans, rejected, {"transform": t1 - t0, "clusters": t2 - t1, "fits": t3 - t2}
+
+
+def _beyond_image(grid, T_sensor_from_plane, box):
+    """Which places (float (K, 3), plane frame, m) project beyond the edge of the organized grid's
+    image (box: geometry.image_box of it) or onto it: bool (K,). Its pinhole camera is fitted at the
+    first call (few searches ask); none fitted, none lies beyond."""
+    camera = []
+
+    def beyond(places):
+        if not camera:
+            camera.append(g.pinhole(grid))
+        if camera[0] is None:
+            return np.zeros(len(places), bool)
+        return g.outside_image(transforms.apply(T_sensor_from_plane, places), camera[0], box)
+    return beyond
 
 
 def _with_hidden_ends(can, in_plane, standing, cluster, T_plane_from_sensor, sensor_plane, config):

@@ -57,7 +57,7 @@ it is no lying can either).
 import dataclasses
 from dataclasses import dataclass, field
 from functools import partial
-from typing import NamedTuple, Optional
+from typing import Callable, NamedTuple, Optional
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -136,6 +136,8 @@ class CylinderSearchConfig:
     lies one radius above the table to within lying_gap (and 3 sigma). lying_join_angle (rad), lying_join_offset (m),
     lying_join_gap (m): two lying cans are the parts of one that an object across it splits
     (_join_lying).
+    projector_offset (m): the IR projector's offset from the camera along its +x (a Kinect's 0.075); a
+    can's side facing away from it shows no depth, and is hidden (_rest_hidden). 0: not known.
     seed: of the RANSAC sampling (the result is the same for the same cloud).
     """
 
@@ -185,6 +187,7 @@ class CylinderSearchConfig:
     lying_join_angle: float = 0.1
     lying_join_offset: float = 0.015
     lying_join_gap: float = 0.15
+    projector_offset: float = 0.075
     seed: int = 0
 
     def validate(self):
@@ -411,6 +414,9 @@ class _Context:
     claimed: list = field(default_factory=list)  # _Claim: the round objects claimed as no can
     # float64 (E, 3): the standing points on the image's edge (the view ends beyond them; plane frame, m)
     image_edge: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    projector: Optional[np.ndarray] = None  # (3,): the IR projector in the plane frame (m); None: not known
+    # Which places (float64 (K, 3), plane frame, m) lie beyond the image's edge: bool (K,); None: no image.
+    beyond_image: Optional[Callable] = None
 
 
 class _Free:
@@ -1112,7 +1118,15 @@ def _rest_hidden(side_xy, cx, cy, r, r_eps, z_lo, z_hi, ctx, samples=13, limb=1.
     st = st[(st[:, 0] - cx) ** 2 + (st[:, 1] - cy) ** 2 > (r + r_eps) ** 2]
     ring = np.column_stack([cx + r * np.cos(unseen), cy + r * np.sin(unseen)])
     q = np.vstack([np.column_stack([ring, np.full(len(unseen), z)]) for z in (z_lo, z_hi)])
-    return bool(g.behind(q, st, ctx.sensor, cone).all())
+    hidden = g.behind(q, st, ctx.sensor, cone)
+    # Or out of view (fresh 6845 of "cluttered table": a can the image's bottom edge cuts, seen by its
+    # lid and 0.51 rad of side): beyond the image's edge, or in the projector's shadow, the side facing
+    # away from it, which it does not light and which has no depth.
+    if ctx.beyond_image is not None and not hidden.all():
+        hidden |= ctx.beyond_image(q)
+    if ctx.projector is not None and not hidden.all():
+        hidden |= np.einsum("ij,ij->i", q[:, :2] - (cx, cy), ctx.projector[:2] - q[:, :2]) <= 0
+    return bool(hidden.all())
 
 
 def _open_top(points, cx, cy, r, r_eps, base, top, ctx):
@@ -1799,7 +1813,8 @@ def _lying_result(found, rest, ctx):
                support_height=0.0, lying=True)
 
 
-def search(clusters, standing, T_sensor_from_plane, sensor_plane, config, ray_angle=0.0, image_edge=None):
+def search(clusters, standing, T_sensor_from_plane, sensor_plane, config, ray_angle=0.0, image_edge=None,
+           beyond_image=None):
     """Every can in the clusters: (list of (cluster number, Can)), list of (cluster number,
     Rejection)), each Can's indices into that cluster's points.
 
@@ -1810,14 +1825,17 @@ def search(clusters, standing, T_sensor_from_plane, sensor_plane, config, ray_an
     band, fit and criterion; its .cylinders the CylinderSearchConfig); ray_angle (rad): between
     the rays of neighbouring points of the grid searched (geometry.ray_angle; 0: not known);
     image_edge: float64 (E, 3), the standing points on the image's edge (a can's base below them is
-    out of view; None: no image)."""
+    out of view; None: no image); beyond_image: which places (float64 (K, 3), plane frame, m) lie
+    beyond the image's edge, bool (K,) (None: no image)."""
     s = config.cylinders
     s.validate()
     ctx = _Context(config=config, search=s, T_sensor_from_plane=np.asarray(T_sensor_from_plane, dtype=float),
                    sensor=np.asarray(sensor_plane, dtype=float),
                    standing=np.asarray(standing, dtype=float), rng=np.random.default_rng(s.seed), found=[],
                    ray_angle=float(ray_angle),
-                   image_edge=np.zeros((0, 3)) if image_edge is None else np.asarray(image_edge, dtype=float))
+                   image_edge=np.zeros((0, 3)) if image_edge is None else np.asarray(image_edge, dtype=float),
+                   projector=transforms.apply(transforms.invert(T_sensor_from_plane), (s.projector_offset, 0.0, 0.0))
+                   if s.projector_offset else None, beyond_image=beyond_image)
     cans, rejections = [], []
     # Lowest clusters first is not needed: a stacked can's support is in its own cluster.
     for k, points in enumerate(clusters):

@@ -1554,6 +1554,28 @@ def test_a_can_seen_by_its_lid_alone_behind_a_taller_one_touches_it(case, seed):
     assert_upright_cans_found(case, seed, 0.0025)
 
 
+def test_a_can_the_image_edge_cuts_seen_steeply_is_found_by_its_lid_and_side():
+    """Fresh 6845 of "cluttered table": a can (r 32.6 mm) the image's bottom edge cuts, seen by its lid
+    and 0.51 rad of side; its lid pins its circle, and the rest of its near half lies beyond the
+    image or in the IR projector's shadow (that side has no depth), not behind an object. Found,
+    within 1 mm of its axis, with every other can."""
+    assert_upright_cans_found("cluttered table", 6845, 0.001)
+
+
+def test_the_side_in_the_projectors_shadow_is_hidden():
+    """_rest_hidden: a can's near half (r 40 mm, the sensor 1 m off at -y, 0.5 m up) seen but near
+    its -x limb is hidden there when it faces away from the projector (0.5 m to the sensor's +x side:
+    it does not light it); not with no projector, nor with one to the -x side, which lights it."""
+    r = 0.04
+    seen = np.radians(np.linspace(-150, -20, 40))  # -90 degrees faces the sensor; the limbs at -164.5, -15.5
+    side = np.column_stack([r * np.cos(seen), r * np.sin(seen)])
+    for projector, hidden in ((None, False), ((0.5, -1.0, 0.5), True), ((-0.5, -1.0, 0.5), False)):
+        ctx = cs._Context(config=af.AutoConfig(), search=cs.CylinderSearchConfig(), T_sensor_from_plane=np.eye(4),
+                          sensor=np.array([0.0, -1.0, 0.5]), standing=np.zeros((0, 3)), rng=np.random.default_rng(0),
+                          found=[], projector=None if projector is None else np.array(projector))
+        assert cs._rest_hidden(side, 0.0, 0.0, r, 0.006, 0.02, 0.1, ctx) == hidden, projector
+
+
 def test_the_rounds_search_again_after_a_can_found_by_its_lid():
     """Fresh 6723 of "can on can": cans of r 40 and 33 mm, stacked, seen with 6 mm of noise band
     (r_eps): one circle grew over both sides (r 37 mm, "not round"); the upper can was found by its
