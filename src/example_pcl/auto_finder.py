@@ -9,6 +9,7 @@ steps and the criterion: docs/can_search.md ("The table and the clusters").
 """
 import argparse
 import dataclasses
+import functools
 import json
 import sys
 import time
@@ -385,14 +386,12 @@ def _beyond_image(grid, T_sensor_from_plane, box):
     """Which places (float (K, 3), plane frame, m) project beyond the edge of the organized grid's
     image (box: geometry.image_box of it) or onto it: bool (K,). Its pinhole camera is fitted at the
     first call (few searches ask); none fitted, none lies beyond."""
-    camera = []
+    camera = functools.cache(lambda: g.pinhole(grid))
 
     def beyond(places):
-        if not camera:
-            camera.append(g.pinhole(grid))
-        if camera[0] is None:
+        if camera() is None:
             return np.zeros(len(places), bool)
-        return g.outside_image(transforms.apply(T_sensor_from_plane, places), camera[0], box)
+        return g.outside_image(transforms.apply(T_sensor_from_plane, places), camera(), box)
     return beyond
 
 

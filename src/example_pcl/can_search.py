@@ -1829,13 +1829,15 @@ def search(clusters, standing, T_sensor_from_plane, sensor_plane, config, ray_an
     beyond the image's edge, bool (K,) (None: no image)."""
     s = config.cylinders
     s.validate()
+    # The IR projector, projector_offset along the camera's +x, in the plane frame.
+    projector = transforms.apply(transforms.invert(T_sensor_from_plane), (s.projector_offset, 0.0, 0.0)) \
+        if s.projector_offset else None
     ctx = _Context(config=config, search=s, T_sensor_from_plane=np.asarray(T_sensor_from_plane, dtype=float),
                    sensor=np.asarray(sensor_plane, dtype=float),
                    standing=np.asarray(standing, dtype=float), rng=np.random.default_rng(s.seed), found=[],
                    ray_angle=float(ray_angle),
                    image_edge=np.zeros((0, 3)) if image_edge is None else np.asarray(image_edge, dtype=float),
-                   projector=transforms.apply(transforms.invert(T_sensor_from_plane), (s.projector_offset, 0.0, 0.0))
-                   if s.projector_offset else None, beyond_image=beyond_image)
+                   projector=projector, beyond_image=beyond_image)
     cans, rejections = [], []
     # Lowest clusters first is not needed: a stacked can's support is in its own cluster.
     for k, points in enumerate(clusters):
