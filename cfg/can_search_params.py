@@ -2,9 +2,9 @@
 
 Each entry: (name, type, default, min, max, description). Names are AutoConfig's field names
 (example_pcl.auto_finder) except where find_can's operator steps already use the name: those get
-an ``auto_`` prefix; the group lying holds its CylinderSearchConfig's (AutoConfig.cylinders)
-fields named lying_*. Lengths in metres, angles in radians; test_reconfigure checks the defaults
-against AutoConfig's.
+an ``auto_`` prefix; the groups lying and sensor hold fields of its CylinderSearchConfig
+(AutoConfig.cylinders): those named lying_*, and projector_offset. Lengths in metres, angles in
+radians; test_reconfigure checks the defaults against AutoConfig's.
 """
 
 GROUPS = {
@@ -57,6 +57,11 @@ GROUPS = {
         ("lying_join_offset", "double", 0.015, 0.0, 0.1, "and each axis this near the other's middle (m)"),
         ("lying_join_gap", "double", 0.15, 0.0, 1.0, "and at most this far apart along it (m)"),
     ],
+    # The depth sensor (can_search.CylinderSearchConfig): no depth where its IR projector casts no light.
+    "sensor": [
+        ("projector_offset", "double", 0.075, -0.2, 0.2,
+         "the IR projector's offset from the depth camera along its +x (m; a Kinect's 0.075, 0: not known)"),
+    ],
 }
 
 # AutoConfig field of each prefixed name.
@@ -69,7 +74,7 @@ SEARCHES = ("cylinders", "clusters")
 
 
 def add_can_search(gen, level=0):
-    """Adds the groups table, objects, fit, criterion and lying (and the clustering and search
+    """Adds the groups table, objects, fit, criterion, lying and sensor (and the clustering and search
     enums) to a generator."""
     from dynamic_reconfigure.parameter_generator_catkin import int_t, double_t, str_t
 

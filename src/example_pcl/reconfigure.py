@@ -2,8 +2,9 @@
 
 A node's reconfigure callback gets a dict of every parameter of its .cfg file (cfg/*.cfg). Names
 are the config dataclasses' field names; the automatic search's fields that clash with the
-operator steps' (r_eps, refine_iterations) carry an ``auto_`` prefix; the cylinder search's lying
-step (AutoConfig.cylinders' fields named ``lying_*``) takes its own names. Unknown names are ignored.
+operator steps' (r_eps, refine_iterations) carry an ``auto_`` prefix; the cylinder search's fields
+that are parameters (AutoConfig.cylinders' ``lying_*`` and ``projector_offset``) take their own
+names. Unknown names are ignored.
 """
 import dataclasses
 
@@ -48,7 +49,7 @@ def finder_from_values(finder, values):
     shared = {f.name for f in dataclasses.fields(finder)}
     auto_values = {k: v for k, v in values.items() if k.startswith(AUTO_PREFIX) or k not in shared}
     auto, auto_changes = replace_fields(finder.auto, auto_values, AUTO_PREFIX)
-    auto, lying_changes = _with_lying(auto, values)
+    auto, cylinder_changes = _with_cylinders(auto, values)
     operator_values = {k: v for k, v in values.items() if not k.startswith(AUTO_PREFIX)}
     updated, changes = replace_fields(dataclasses.replace(finder, auto=auto), operator_values)
     updated.validate()
@@ -56,7 +57,7 @@ def finder_from_values(finder, values):
     updated.auto.cylinders.validate()
     log = [f"{k} {old} -> {new}" for k, (old, new) in changes.items()]
     log += [f"{AUTO_PREFIX if k in shared else ''}{k} {old} -> {new}" for k, (old, new) in auto_changes.items()]
-    log += [f"{k} {old} -> {new}" for k, (old, new) in lying_changes.items()]
+    log += [f"{k} {old} -> {new}" for k, (old, new) in cylinder_changes.items()]
     return updated, log
 
 
@@ -65,20 +66,23 @@ def param_names(finder):
     then the automatic search's (``auto_``-prefixed where the names clash)."""
     operator = _scalar_names(finder)
     return (operator + [AUTO_PREFIX + n if n in operator else n for n in _scalar_names(finder.auto)]
-            + _lying_names(finder.auto))
+            + _cylinder_names(finder.auto))
 
 
 LYING_PREFIX = "lying_"
+# The cylinder search's other fields that are parameters (cfg/can_search_params.py, group sensor).
+SENSOR_NAMES = ("projector_offset",)
 
 
-def _lying_names(auto):
-    """The names of the lying step's fields of an AutoConfig's CylinderSearchConfig (lying_*)."""
-    return [n for n in _scalar_names(auto.cylinders) if n.startswith(LYING_PREFIX)]
+def _cylinder_names(auto):
+    """The names of an AutoConfig's CylinderSearchConfig fields that are parameters: the lying step's
+    (lying_*) and the sensor's."""
+    return [n for n in _scalar_names(auto.cylinders) if n.startswith(LYING_PREFIX) or n in SENSOR_NAMES]
 
 
-def _with_lying(auto, values):
-    """(AutoConfig with the lying step's fields of its cylinder search set from values, {field: (old, new)})."""
-    cylinders, changes = replace_fields(auto.cylinders, {k: values[k] for k in _lying_names(auto) if k in values})
+def _with_cylinders(auto, values):
+    """(AutoConfig with its cylinder search's parameter fields set from values, {field: (old, new)})."""
+    cylinders, changes = replace_fields(auto.cylinders, {k: values[k] for k in _cylinder_names(auto) if k in values})
     return dataclasses.replace(auto, cylinders=cylinders), changes
 
 
@@ -97,16 +101,16 @@ def tracker_from_values(local, tracker, values):
     reconfigure `values` (cfg/CanTracker.cfg).
 
     The search's fields take the names of cfg/can_search_params.py (``auto_`` + the name where
-    find_can's operator steps use it; its lying step's, lying_*, their own); the local refit's
-    take theirs, or ``local_`` + the name where the search uses it too (max_fit_points,
-    fit_tolerance); the tracker's take theirs.
+    find_can's operator steps use it; its cylinder search's, lying_* and projector_offset, their
+    own); the local refit's take theirs, or ``local_`` + the name where the search uses it too
+    (max_fit_points, fit_tolerance); the tracker's take theirs.
     Returns (LocalFitConfig, TrackerConfig, changes: "name old -> new" strings for the log).
     Raises PerceptionError (nothing changed) when a result would not validate.
     """
     auto_names = set(_scalar_names(local.auto))
     auto, auto_changes = replace_fields(local.auto, {k: v for k, v in values.items()
                                                      if not k.startswith(LOCAL_PREFIX)}, AUTO_PREFIX)
-    auto, lying_changes = _with_lying(auto, values)
+    auto, cylinder_changes = _with_cylinders(auto, values)
     local_values = {k: v for k, v in values.items() if k.startswith(LOCAL_PREFIX) or k not in auto_names}
     updated_local, local_changes = replace_fields(dataclasses.replace(local, auto=auto), local_values, LOCAL_PREFIX)
     updated_tracker, tracker_changes = replace_fields(
@@ -116,7 +120,7 @@ def tracker_from_values(local, tracker, values):
     updated_tracker.validate()
     log = [f"{AUTO_PREFIX if AUTO_PREFIX + k in values else ''}{k} {old} -> {new}"
            for k, (old, new) in auto_changes.items()]
-    log += [f"{k} {old} -> {new}" for k, (old, new) in lying_changes.items()]
+    log += [f"{k} {old} -> {new}" for k, (old, new) in cylinder_changes.items()]
     log += [f"{LOCAL_PREFIX if k in auto_names else ''}{k} {old} -> {new}" for k, (old, new) in local_changes.items()]
     log += [f"{k} {old} -> {new}" for k, (old, new) in tracker_changes.items()]
     return updated_local, updated_tracker, log

@@ -121,6 +121,23 @@ def test_lying_group_sets_the_cylinder_searchs_lying_step():
         finder_from_values(FinderConfig(), {"lying_directions": 0})
 
 
+def test_sensor_group_sets_the_cylinder_searchs_projector_offset():
+    """FindCan.cfg's group sensor holds the IR projector's offset of AutoConfig.cylinders; a projector
+    on the camera's other side (negative) or none known (0) reach the search, for the tracker too."""
+    from example_pcl.local_fit import LocalFitConfig
+    from example_pcl.reconfigure import tracker_from_values
+    from example_pcl.tracking import TrackerConfig
+
+    assert {n for n, group in _groups().items() if group == "sensor"} == {"projector_offset"}
+    assert generated.defaults["projector_offset"] == AutoConfig().cylinders.projector_offset
+    assert generated.min["projector_offset"] < 0 < generated.max["projector_offset"]
+    updated, log = finder_from_values(FinderConfig(), cfg_values(projector_offset=-0.05))
+    assert updated.auto.cylinders.projector_offset == -0.05
+    assert log == ["projector_offset 0.075 -> -0.05"]
+    local, _, log = tracker_from_values(LocalFitConfig(), TrackerConfig(), {"projector_offset": 0.0})
+    assert local.auto.cylinders.projector_offset == 0.0 and log == ["projector_offset 0.075 -> 0.0"]
+
+
 def _groups():
     """{parameter name: its group's name} of FindCan.cfg."""
     out = {}
