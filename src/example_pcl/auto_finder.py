@@ -400,12 +400,13 @@ def _with_hidden_ends(can, in_plane, standing, cluster, T_plane_from_sensor, sen
     among the points standing on the table (standing: flat indices into in_plane, the searched grid in
     the plane frame, m) but its cluster's (cluster: flat indices): an object touching the can's end
     is in its cluster and bounds it there ("lying can touching box"); one standing apart in front of
-    the end hides it ("cluttered table" 3531, 3542)."""
+    the end hides it ("cluttered table" 3531, 3542), or its shadow from the IR projector does (6847)."""
     occluders = in_plane.reshape(-1, 3)[np.setdiff1d(standing, cluster)].astype(float)
     start = transforms.apply(T_plane_from_sensor, can.base_center)
     u = T_plane_from_sensor[:3, :3] @ can.axis
     r_eps = max(config.r_eps, config.r_eps_sigmas * config.depth_sigma(start + 0.5 * can.height * u, sensor_plane))
-    hidden = lying.hidden_ends(start, u, can.height, can.radius, r_eps, sensor_plane, occluders)
+    hidden = lying.hidden_ends(start, u, can.height, can.radius, r_eps, sensor_plane, occluders,
+                               projector=can_search.projector_in_plane(T_plane_from_sensor, config.cylinders))
     return dataclasses.replace(can, ends_hidden=hidden)
 
 

@@ -1814,6 +1814,14 @@ def _lying_result(found, rest, ctx):
                support_height=0.0, lying=True)
 
 
+def projector_in_plane(T_plane_from_sensor, search):
+    """The IR projector (3,), projector_offset (CylinderSearchConfig `search`) along the camera's +x,
+    in the plane frame (m; T_plane_from_sensor 4x4), or None when the offset is not known (0)."""
+    if not search.projector_offset:
+        return None
+    return transforms.apply(T_plane_from_sensor, (search.projector_offset, 0.0, 0.0))
+
+
 def search(clusters, standing, T_sensor_from_plane, sensor_plane, config, ray_angle=0.0, image_edge=None,
            beyond_image=None):
     """Every can in the clusters: (list of (cluster number, Can)), list of (cluster number,
@@ -1830,9 +1838,7 @@ def search(clusters, standing, T_sensor_from_plane, sensor_plane, config, ray_an
     beyond the image's edge, bool (K,) (None: no image)."""
     s = config.cylinders
     s.validate()
-    # The IR projector, projector_offset along the camera's +x, in the plane frame.
-    projector = transforms.apply(transforms.invert(T_sensor_from_plane), (s.projector_offset, 0.0, 0.0)) \
-        if s.projector_offset else None
+    projector = projector_in_plane(transforms.invert(T_sensor_from_plane), s)
     ctx = _Context(config=config, search=s, T_sensor_from_plane=np.asarray(T_sensor_from_plane, dtype=float),
                    sensor=np.asarray(sensor_plane, dtype=float),
                    standing=np.asarray(standing, dtype=float), rng=np.random.default_rng(s.seed), found=[],

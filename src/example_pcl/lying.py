@@ -354,11 +354,12 @@ def _through_hidden(run, may_join, bands, on, dl, dz, fit, a0, band, r_eps, sens
     return first, last
 
 
-def _hidden_where_unseen(fit, axial, seen, sensor, occluders):
+def _hidden_where_unseen(fit, axial, seen, sensor, occluders, projector=None):
     """Whether the places on the half of the cylinder fit ((theta, offset, zc, r, ...)) facing the
     sensor, at the axial coordinates `axial` (m), that no angle in `seen` (rad, from the lateral axis)
     comes near (geometry.unseen_angles) all lie behind one of the occluders ((M, 3), m) seen from the
-    sensor; sensor, occluders and fit in one frame (the fits' coordinates)."""
+    sensor, or from the IR projector ((3,), None: not known: in its shadow, without depth); sensor,
+    projector, occluders and fit in one frame (the fits' coordinates)."""
     t, d, zc, r = fit[:4]
     fl, fz = _toward_sensor(t, d, zc, sensor)
     unseen = g.unseen_angles(seen, np.arctan2(fz, fl))
@@ -367,7 +368,10 @@ def _hidden_where_unseen(fit, axial, seen, sensor, occluders):
     lateral, height = d + r * np.cos(unseen), zc + r * np.sin(unseen)
     places = np.vstack([np.column_stack([a * np.cos(t) - lateral * np.sin(t), a * np.sin(t) + lateral * np.cos(t),
                                          height]) for a in axial])
-    return bool(g.behind(places, occluders, np.asarray(sensor, float)).all())
+    hidden = g.behind(places, occluders, np.asarray(sensor, float))
+    if projector is not None and not hidden.all():
+        hidden |= g.behind(places, occluders, np.asarray(projector, float))
+    return bool(hidden.all())
 
 
 def _without_flat_end(bands, residual, diagonal, run, r_eps, min_bands=2, min_count=10, ratio=3.0, floor=1 / 3,
@@ -691,23 +695,26 @@ def judge_lying(points, fit, r_eps, sigma, config, search, sensor=None, occluder
                     inliers=side, mine=body, shape_error=shape, arc=arc, rims=rims), ""
 
 
-def hidden_ends(start, direction, length, radius, r_eps, sensor, occluders, reach=(0.01, 0.02)):
+def hidden_ends(start, direction, length, radius, r_eps, sensor, occluders, reach=(0.01, 0.02), projector=None):
     """Which ends of a lying can an object in front hides: (origin's end, other end), bools.
 
     start: the centre of one end (3,), direction: horizontal (3,) or (2,), length, radius, r_eps (m);
-    sensor (3,) and occluders (float (N, 3)), every point standing on the table; all in the plane
-    frame. An end is hidden when the places of the side's half facing the sensor `reach` (m) beyond
-    it all lie behind occluders other than the can's own points (_hidden_where_unseen, nothing of it
-    seen there): the can may go on there unseen ("cluttered table" 3531, 3542: a tall box in front
-    of one end)."""
+    sensor (3,), projector (3,: the IR projector; None: not known) and occluders (float (N, 3)),
+    every point standing on the table; all in the plane frame. An end is hidden when the places of
+    the side's half facing the sensor `reach` (m) beyond it all lie behind occluders other than the
+    can's own points, seen from the sensor or in their shadow from the projector
+    (_hidden_where_unseen, nothing of it seen there): the can may go on there unseen ("cluttered
+    table" 3531, 3542: a tall box in front of one end; fresh 6847: a tall can in front, beside whose
+    silhouette the end lies in its shadow)."""
     u = np.asarray(direction, dtype=float)[:2]
     fit = LyingFit(direction=u / np.linalg.norm(u), origin=np.asarray(start, dtype=float)[:2], offset=0.0,
                    zc=float(start[2]), radius=float(radius), rms=0.0, n_inliers=0)
     others = _others(fit, np.asarray(occluders, dtype=float).reshape(-1, 3), 0.0, length, r_eps)
     axis, seen_from = (fit.theta, 0.0, fit.zc, fit.radius), _from_origin(sensor, fit.origin)
+    lit_from = _from_origin(projector, fit.origin)
     origin_end, other_end = ([-d for d in reach], [length + d for d in reach])  # axial coordinates (m)
-    return (_hidden_where_unseen(axis, origin_end, [], seen_from, others),
-            _hidden_where_unseen(axis, other_end, [], seen_from, others))
+    return (_hidden_where_unseen(axis, origin_end, [], seen_from, others, lit_from),
+            _hidden_where_unseen(axis, other_end, [], seen_from, others, lit_from))
 
 
 def _others(fit, occluders, a_lo, a_hi, r_eps):
