@@ -137,8 +137,9 @@ class CylinderSearchConfig:
     lying_join_gap (m): two lying cans are the parts of one that an object across it splits
     (_join_lying).
     projector_offset (m): the IR projector's offset from the camera along its +x (a Kinect's 0.075); a
-    can's side facing away from it shows no depth, and is hidden (_rest_hidden). 0: not known. The
-    lying_* fields and this one are ROS parameters (cfg/can_search_params.py).
+    can's side facing away from it, and what an object shadows from it, show no depth, and are hidden
+    (_rest_hidden; a lying can's ends: lying.hidden_ends). 0: not known. The lying_* fields and
+    this one are ROS parameters (cfg/can_search_params.py).
     seed: of the RANSAC sampling (the result is the same for the same cloud).
     """
 
