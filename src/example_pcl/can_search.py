@@ -1611,10 +1611,14 @@ def _lid_judged(free, z_lid, lid, sigma, r_eps, ctx):
         # stripe of side seen beside that can lies off it (held-out 1507 of "cluttered table": 5 mm
         # outside): the circle refitted to both, if its lid's rim still fits it.
         under = (np.abs(dist - r) <= 2 * r_eps) & (z < hidden_below) & facing
-        if np.count_nonzero(under) >= c.min_fit_points:
-            joint = _rim_with_side(rim, pts[under], lid, sigma, r_eps, ctx)
-            if joint is None:
-                return None, "", None
+        refit = np.count_nonzero(under) >= c.min_fit_points
+        joint = _rim_with_side(rim, pts[under], lid, sigma, r_eps, ctx) if refit else None
+        if refit and joint is None and not isinstance(reason, _TooFew):
+            # No such circle, but too few on the rim's own to judge a side by is hidden, as below (fresh
+            # 6713 of "cans touching": a can behind a wider one, touching it, its lid whole, 27 points of
+            # its side on its rim's circle).
+            return None, "", None
+        if joint is not None:
             can, reason, claim = _rim_verdict(free, joint.cx, joint.cy, joint.radius, ctx)
             # Fewer than min_fit_points of them on its circle over the run of bands the side shows: too
             # few to judge a side by, hidden as below (fresh 5731 of "cans touching": a can behind a wider
