@@ -1614,9 +1614,9 @@ def _lid_judged(free, z_lid, lid, sigma, r_eps, ctx):
         refit = np.count_nonzero(under) >= c.min_fit_points
         joint = _rim_with_side(rim, pts[under], lid, sigma, r_eps, ctx) if refit else None
         if refit and joint is None and not isinstance(reason, _TooFew):
-            # No such circle, but too few on the rim's own to judge a side by is hidden, as below (fresh
-            # 6713 of "cans touching": a can behind a wider one, touching it, its lid whole, 27 points of
-            # its side on its rim's circle).
+            # No such circle: no can, unless the rim's own circle had too few side points to judge a side
+            # by, hidden then, as below (fresh 6713 of "cans touching": a can behind a wider one, touching
+            # it, its lid whole, 27 points of its side on its rim's circle).
             return None, "", None
         if joint is not None:
             can, reason, claim = _rim_verdict(free, joint.cx, joint.cy, joint.radius, ctx)
