@@ -371,8 +371,9 @@ def _search_cylinders(pts, T, viewpoint, config):
     found, rejections = can_search.search(points, standing, T, sensor_plane, config,
                                           ray_angle=g.ray_angle(grid, viewpoint), image_edge=edge,
                                           beyond_image=None if box is None else _beyond_image(grid, T, box))
+    projector = can_search.projector_in_plane(T_plane_from_sensor, config.cylinders)
     found = [(k, _with_hidden_ends(can, in_plane, standing_idx, clusters[k], T_plane_from_sensor, sensor_plane,
-                                   config) if can.lying else can) for k, can in found]
+                                   projector, config) if can.lying else can) for k, can in found]
     cans = [dataclasses.replace(can, indices=_grid_indices(clusters[k][can.indices], in_plane.shape[:-1],
                                                             pts.shape[:-1], step)) for k, can in found]
     rejected = [RejectedCluster(centroid=transforms.apply(T, rj.centroid), n_points=rj.n_points, reason=rj.reason,
@@ -395,18 +396,18 @@ def _beyond_image(grid, T_sensor_from_plane, box):
     return beyond
 
 
-def _with_hidden_ends(can, in_plane, standing, cluster, T_plane_from_sensor, sensor_plane, config):
+def _with_hidden_ends(can, in_plane, standing, cluster, T_plane_from_sensor, sensor_plane, projector, config):
     """A lying Can with its ends_hidden: which of its ends an object in front hides (lying.hidden_ends),
     among the points standing on the table (standing: flat indices into in_plane, the searched grid in
     the plane frame, m) but its cluster's (cluster: flat indices): an object touching the can's end
     is in its cluster and bounds it there ("lying can touching box"); one standing apart in front of
-    the end hides it ("cluttered table" 3531, 3542), or its shadow from the IR projector does (6847)."""
+    the end hides it ("cluttered table" 3531, 3542), or its shadow from the IR projector does (6847;
+    projector: its place in the plane frame, None: not known)."""
     occluders = in_plane.reshape(-1, 3)[np.setdiff1d(standing, cluster)].astype(float)
     start = transforms.apply(T_plane_from_sensor, can.base_center)
     u = T_plane_from_sensor[:3, :3] @ can.axis
     r_eps = max(config.r_eps, config.r_eps_sigmas * config.depth_sigma(start + 0.5 * can.height * u, sensor_plane))
-    hidden = lying.hidden_ends(start, u, can.height, can.radius, r_eps, sensor_plane, occluders,
-                               projector=can_search.projector_in_plane(T_plane_from_sensor, config.cylinders))
+    hidden = lying.hidden_ends(start, u, can.height, can.radius, r_eps, sensor_plane, occluders, projector=projector)
     return dataclasses.replace(can, ends_hidden=hidden)
 
 
