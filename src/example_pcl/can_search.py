@@ -1099,12 +1099,13 @@ def _in_front(cx, cy, r, z_low, z_high, ctx):
 
 def _rest_hidden(side_xy, cx, cy, r, r_eps, z_lo, z_hi, ctx, samples=13, limb=1.3, cone=0.01):
     """Whether every part of the near half of the side (cx, cy, r; heights z_lo..z_hi, m) that shows
-    none of the side points side_xy lies behind something closer to the sensor, at the top and the
-    bottom of the side: a can behind another, touching it, is seen only beside the front one's
+    none of the side points side_xy has no depth, at the top and the bottom of the side: behind
+    something closer to the sensor, unlit by the IR projector (geometry.without_depth) or beyond the
+    image's edge; a can behind another, touching it, is seen only beside the front one's
     silhouette, over less than min_hidden_arc (0.55-0.93 rad on "cans touching", development seeds 0,
     5, 15, 23). Sampled at `samples` angles within `limb` (rad) of the direction to the sensor (the
-    side near its limbs is seen at a grazing angle, often not at all); hidden: a standing point
-    outside the disc within `cone` (rad) of the sensor's ray to the sample and at least 1 cm nearer.
+    side near its limbs is seen at a grazing angle, often not at all); behind: a standing point
+    outside the disc within `cone` (rad) of the sensor's (or projector's) ray to it and 1 cm nearer.
     Toward the limbs, where one column of the grid spans a wider arc than the samples' spacing, a
     sample is seen when a side point lies within that arc (geometry.sampled_arc)."""
     front = _toward_sensor(cx, cy, ctx)
@@ -1118,16 +1119,13 @@ def _rest_hidden(side_xy, cx, cy, r, r_eps, z_lo, z_hi, ctx, samples=13, limb=1.
         return True
     st = ctx.standing
     st = st[(st[:, 0] - cx) ** 2 + (st[:, 1] - cy) ** 2 > (r + r_eps) ** 2]
-    ring = np.column_stack([cx + r * np.cos(unseen), cy + r * np.sin(unseen)])
-    q = np.vstack([np.column_stack([ring, np.full(len(unseen), z)]) for z in (z_lo, z_hi)])
-    hidden = g.behind(q, st, ctx.sensor, cone)
+    outward = np.column_stack([np.cos(unseen), np.sin(unseen), np.zeros(len(unseen))])
+    q = np.vstack([outward * (r, r, 0) + (cx, cy, z) for z in (z_lo, z_hi)])
+    hidden = g.without_depth(q, np.vstack([outward, outward]), st, ctx.sensor, ctx.projector, cone)
     # Or out of view (fresh 6845 of "cluttered table": a can the image's bottom edge cuts, seen by its
-    # lid and 0.51 rad of side): beyond the image's edge, or in the projector's shadow, the side facing
-    # away from it, which it does not light and which has no depth.
+    # lid and 0.51 rad of side).
     if ctx.beyond_image is not None and not hidden.all():
         hidden |= ctx.beyond_image(q)
-    if ctx.projector is not None and not hidden.all():
-        hidden |= np.einsum("ij,ij->i", q[:, :2] - (cx, cy), ctx.projector[:2] - q[:, :2]) <= 0
     return bool(hidden.all())
 
 
@@ -1800,7 +1798,7 @@ def _lying(points, rest, ctx):
     pts = points[rest]
     sigma = _sigma(ctx, pts.mean(axis=0))
     found, why = lying.lying_cans(pts, max(c.r_eps, c.r_eps_sigmas * sigma), sigma, c, ctx.search, ctx.sensor,
-                                  ctx.standing)
+                                  ctx.standing, ctx.projector)
     return [_lying_result(can, rest, ctx) for can in found], why
 
 

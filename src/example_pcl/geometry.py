@@ -520,6 +520,24 @@ def behind(places, occluders, sensor, cone=0.01, margin=0.01):
     return (close & (ranges[:, None] < q_range[None, :] - margin)).any(axis=0)
 
 
+def without_depth(places, normals, occluders, sensor, projector=None, cone=0.01):
+    """Which of the places (float (K, 3), m) on a surface of outward normals `normals` ((K, 3)) a
+    structured-light camera gives no depth for: behind one of the occluders ((N, 3)) seen from the
+    camera (`sensor`, (3,)), or, where the IR projector ((3,); None: not known) is known, unlit by it:
+    facing away from it (the surface's own shadow) or behind an occluder seen from it (a cast
+    shadow); one frame. bool (K,)."""
+    places = np.asarray(places, dtype=float).reshape(-1, 3)
+    hidden = behind(places, occluders, np.asarray(sensor, dtype=float), cone)
+    if projector is None or hidden.all():
+        return hidden
+    projector = np.asarray(projector, dtype=float)
+    hidden |= np.einsum("ij,ij->i", np.asarray(normals, dtype=float).reshape(-1, 3), projector - places) <= 0
+    lit = ~hidden
+    if lit.any():
+        hidden[lit] = behind(places[lit], occluders, projector, cone)
+    return hidden
+
+
 def seen_through(points, sensor, cx, cy, r, z_lo, z_hi):
     """Which of the points (float (K, 3), m, plane frame) are seen from the sensor ((3,), same frame)
     through the solid upright cylinder of axis (cx, cy), radius r and heights z_lo to z_hi (m): their

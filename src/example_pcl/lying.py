@@ -127,7 +127,7 @@ def _distinct(members, score, count, max_overlap=0.5, scan=64):
 
 def fit_lying_cylinders(points, r_eps, min_radius, max_radius, max_gap, directions=36, iterations=15,
                         max_points=300, count=3, subset_radius=0.05, band=0.01, band_fraction=0.2, min_band_points=3,
-                        max_band_gap=1, sensor=None, min_own=0.6, occluders=None):
+                        max_band_gap=1, sensor=None, min_own=0.6, occluders=None, projector=None):
     """Up to `count` distinct horizontal cylinders explaining points (float64 (N, 3), plane frame, m)
     of a lying can and maybe other objects touching it: LyingFits, most inliers first.
 
@@ -144,7 +144,8 @@ def fit_lying_cylinders(points, r_eps, min_radius, max_radius, max_gap, directio
     ends, and, if that turned the axis by more than a degree (and left a can's radius on the table),
     the run is found again along it and refitted. With the sensor ((x, y, z), plane frame, m) given,
     only the points on a cylinder's half facing it count (_facing), and with occluders (float (M, 3),
-    plane frame, m) the run goes on over bands where the rest of that half is hidden behind them
+    plane frame, m) the run goes on over bands where the rest of that half is hidden behind them, or in
+    their shadow from the IR projector (`projector`, (3,), plane frame, m; None: not known)
     (_through_hidden). At most max_points points (evenly subsampled) are fitted; rms and n_inliers are
     theirs. The run along the axis is counted on all the points."""
     every = points
@@ -183,7 +184,7 @@ def fit_lying_cylinders(points, r_eps, min_radius, max_radius, max_gap, directio
 
     def explained(fit):
         return _explained(q_every, z_every, fit, r_eps, sq, band, band_fraction, min_band_points, max_band_gap,
-                          occluders, origin)
+                          occluders, origin, projector)
 
     def without_ends(fit, run):
         return _without_ends(q, z, origin, fit, r_eps, iterations, max_radius, max_gap, sq, run, band)
@@ -275,7 +276,8 @@ def _on_axis(q, theta):
     return q[:, 0] * c + q[:, 1] * s, q[:, 1] * c - q[:, 0] * s
 
 
-def _explained(q, z, fit, r_eps, sensor, band, fraction, min_points, max_gap, occluders=None, origin=(0.0, 0.0)):
+def _explained(q, z, fit, r_eps, sensor, band, fraction, min_points, max_gap, occluders=None, origin=(0.0, 0.0),
+               projector=None):
     """The axial extent (lo, hi) (m) of the run of `band`-long bands along the axis of the cylinder fit
     ((theta, offset, zc, r, ...)) that its circle explains (geometry.band_run), or None.
 
@@ -286,7 +288,8 @@ def _explained(q, z, fit, r_eps, sensor, band, fraction, min_points, max_gap, oc
     its crown (the upper side within half a radius of the axis, seen from above: a lower box's top at
     its end, as wide as the can, meets its circle on both flanks). With occluders ((M, 3), m, plane
     frame; q is measured from `origin`, (x, y)), the run goes on over the bands beyond it whose facing half is
-    seen where it is not hidden behind them (_through_hidden). The run then loses the bands at one
+    seen where it is not hidden behind them or in their shadow from the projector ((3,), plane frame,
+    m; None: not known) (_through_hidden). The run then loses the bands at one
     end where no can's side is seen (_without_flat_end: a box's top as high as the can)."""
     t, d, zc, r = fit[:4]
     axial, lateral = _on_axis(q, t)
@@ -313,7 +316,8 @@ def _explained(q, z, fit, r_eps, sensor, band, fraction, min_points, max_gap, oc
         return None
     if occluders is not None and sensor is not None:
         may_join = (band_on >= min_points) & (band_inside <= band_on) & (other < min_points)
-        run = _through_hidden(run, may_join, bands, on, dl, dz, fit, a0, band, r_eps, sensor, occluders, origin)
+        run = _through_hidden(run, may_join, bands, on, dl, dz, fit, a0, band, r_eps, sensor, occluders, origin,
+                              projector)
     near = facing & (np.abs(rho - r) <= 3 * r_eps)
     # Up the flank toward the sensor, 30-65 degrees from the top: a box's corner there lies off
     # the circle (a square's around it), a can's side on it.
@@ -325,7 +329,7 @@ def _explained(q, z, fit, r_eps, sensor, band, fraction, min_points, max_gap, oc
     return a0 + run[0] * band, a0 + (run[1] + 1) * band
 
 
-def _through_hidden(run, may_join, bands, on, dl, dz, fit, a0, band, r_eps, sensor, occluders, origin):
+def _through_hidden(run, may_join, bands, on, dl, dz, fit, a0, band, r_eps, sensor, occluders, origin, projector=None):
     """The run (first, last band) grown over the bands beyond its ends that may join it (may_join, per
     band: enough points on the circle, no more inside, nothing else just outside) and whose facing half
     lies, where its points on the circle (`on`, bool, with bands, dl and dz: each point's band and
@@ -340,12 +344,13 @@ def _through_hidden(run, may_join, bands, on, dl, dz, fit, a0, band, r_eps, sens
     occ = _from_origin(occluders, origin)
     # Not the can itself (its own near side would hide its far parts).
     occ = occ[np.hypot(_on_axis(occ[:, :2], t)[1] - d, occ[:, 2] - zc) > r + r_eps]
+    lit_from = _from_origin(projector, origin)
 
     def hidden(b):
         if not (0 <= b < len(may_join) and may_join[b]):
             return False
         mine = on & (bands == b)
-        return _hidden_where_unseen(fit, [a0 + (b + 0.5) * band], np.arctan2(dz[mine], dl[mine]), sensor, occ)
+        return _hidden_where_unseen(fit, [a0 + (b + 0.5) * band], np.arctan2(dz[mine], dl[mine]), sensor, occ, lit_from)
 
     while hidden(first - 1):
         first -= 1
@@ -357,21 +362,19 @@ def _through_hidden(run, may_join, bands, on, dl, dz, fit, a0, band, r_eps, sens
 def _hidden_where_unseen(fit, axial, seen, sensor, occluders, projector=None):
     """Whether the places on the half of the cylinder fit ((theta, offset, zc, r, ...)) facing the
     sensor, at the axial coordinates `axial` (m), that no angle in `seen` (rad, from the lateral axis)
-    comes near (geometry.unseen_angles) all lie behind one of the occluders ((M, 3), m) seen from the
-    sensor, or from the IR projector ((3,), None: not known: in its shadow, without depth); sensor,
-    projector, occluders and fit in one frame (the fits' coordinates)."""
+    comes near (geometry.unseen_angles) all have no depth (geometry.without_depth): behind one of the
+    occluders ((M, 3), m) seen from the sensor, or unlit by the IR projector ((3,), None: not known);
+    sensor, projector, occluders and fit in one frame (the fits' coordinates)."""
     t, d, zc, r = fit[:4]
     fl, fz = _toward_sensor(t, d, zc, sensor)
     unseen = g.unseen_angles(seen, np.arctan2(fz, fl))
     if len(unseen) == 0:
         return True
-    lateral, height = d + r * np.cos(unseen), zc + r * np.sin(unseen)
-    places = np.vstack([np.column_stack([a * np.cos(t) - lateral * np.sin(t), a * np.sin(t) + lateral * np.cos(t),
-                                         height]) for a in axial])
-    hidden = g.behind(places, occluders, np.asarray(sensor, float))
-    if projector is not None and not hidden.all():
-        hidden |= g.behind(places, occluders, np.asarray(projector, float))
-    return bool(hidden.all())
+    # Outward normals: the lateral axis is (-sin t, cos t, 0), the vertical (0, 0, 1).
+    outward = np.column_stack([-np.cos(unseen) * np.sin(t), np.cos(unseen) * np.cos(t), np.sin(unseen)])
+    on_axis = [(a * np.cos(t) - d * np.sin(t), a * np.sin(t) + d * np.cos(t), zc) for a in axial]
+    places = np.vstack([r * outward + point for point in on_axis])
+    return bool(g.without_depth(places, np.tile(outward, (len(axial), 1)), occluders, sensor, projector).all())
 
 
 def _without_flat_end(bands, residual, diagonal, run, r_eps, min_bands=2, min_count=10, ratio=3.0, floor=1 / 3,
@@ -556,7 +559,7 @@ class LyingCan:
     rims: np.ndarray
 
 
-def lying_cans(points, r_eps, sigma, config, search, sensor=None, occluders=None):
+def lying_cans(points, r_eps, sigma, config, search, sensor=None, occluders=None, projector=None):
     """Every lying can among points (float64 (N, 3), plane frame, m), which may hold other objects
     touching them: (list of LyingCan, each one's masks over `points`; why the rest is no lying can).
 
@@ -565,7 +568,7 @@ def lying_cans(points, r_eps, sigma, config, search, sensor=None, occluders=None
     found, why = [], ""
     while np.count_nonzero(free) >= config.min_fit_points and len(found) < search.max_rounds:
         idx = np.flatnonzero(free)
-        can, why = lying_can(points[idx], r_eps, sigma, config, search, sensor, occluders)
+        can, why = lying_can(points[idx], r_eps, sigma, config, search, sensor, occluders, projector)
         if can is None:
             break
         inliers, mine, rims = (np.zeros(len(points), bool) for _ in range(3))
@@ -575,7 +578,7 @@ def lying_cans(points, r_eps, sigma, config, search, sensor=None, occluders=None
     return found, why
 
 
-def lying_can(points, r_eps, sigma, config, search, sensor=None, occluders=None):
+def lying_can(points, r_eps, sigma, config, search, sensor=None, occluders=None, projector=None):
     """A lying can among points (float64 (N, 3), plane frame, m): (LyingCan, "") or (None, why not).
 
     r_eps: inlier distance (m); sigma: depth noise there (m); config: auto_finder.AutoConfig (radius
@@ -584,7 +587,8 @@ def lying_can(points, r_eps, sigma, config, search, sensor=None, occluders=None)
     axis, max_taper, taper_sigmas, max_facet_ratio: a section no rounder than a line); sensor: (x,
     y, z), plane frame (m), or None: only the points on a cylinder's half facing it are its side
     (_facing); occluders (float (N, 3), plane frame, m, or None): every point standing on the
-    table, what may hide part of its side (_rest_hidden). The distinct cylinders of
+    table, what may hide part of its side or, lit by the IR projector ((3,), plane frame, m; None: not
+    known), cast a shadow on it (_rest_hidden). The distinct cylinders of
     fit_lying_cylinders are judged in turn on their extent; the first that passes is the can, else
     the first one's reason is why not."""
     c, s = config, search
@@ -597,19 +601,20 @@ def lying_can(points, r_eps, sigma, config, search, sensor=None, occluders=None)
     fits = fit_lying_cylinders(points[low], r_eps, c.min_radius, c.max_radius, s.lying_gap + 3 * sigma,
                                s.lying_directions, min(c.fit_iterations, 10), s.fit_points, band=s.band_height,
                                band_fraction=s.band_fraction, min_band_points=s.min_band_points,
-                               max_band_gap=s.max_band_gap, sensor=sensor, occluders=occluders)
+                               max_band_gap=s.max_band_gap, sensor=sensor, occluders=occluders,
+                               projector=projector)
     if not fits:
         return None, "lying: no horizontal cylinder fits its points"
     why = ""
     for k, fit in enumerate(fits):
-        can, reason = judge_lying(points, fit, r_eps, sigma, c, s, sensor, occluders)
+        can, reason = judge_lying(points, fit, r_eps, sigma, c, s, sensor, occluders, projector=projector)
         if can is not None:
-            return _tighter(points, can, fits[k + 1:], r_eps, sigma, c, s, sensor, occluders), ""
+            return _tighter(points, can, fits[k + 1:], r_eps, sigma, c, s, sensor, occluders, projector), ""
         why = why or reason
     return None, why
 
 
-def _tighter(points, can, others, r_eps, sigma, config, search, sensor, occluders, ratio=2.0):
+def _tighter(points, can, others, r_eps, sigma, config, search, sensor, occluders, projector=None, ratio=2.0):
     """can, or a shorter one of the other fits on the same side (sharing more than half its side
     points) whose circle explains it more than `ratio` x better (rms): a box at a can's end as high
     and as wide as it draws a circle around both, whose compromise keeps the flank test from
@@ -617,14 +622,15 @@ def _tighter(points, can, others, r_eps, sigma, config, search, sensor, occluder
     for fit in others:
         if fit.rms * ratio >= can.rms:
             continue
-        other, _ = judge_lying(points, fit, r_eps, sigma, config, search, sensor, occluders)
+        other, _ = judge_lying(points, fit, r_eps, sigma, config, search, sensor, occluders, projector=projector)
         if (other is not None and other.length < can.length and other.rms * ratio < can.rms
                 and (other.inliers & can.inliers).sum() > 0.5 * min(other.inliers.sum(), can.inliers.sum())):
             can = other
     return can
 
 
-def judge_lying(points, fit, r_eps, sigma, config, search, sensor=None, occluders=None, min_arc=None):
+def judge_lying(points, fit, r_eps, sigma, config, search, sensor=None, occluders=None, min_arc=None,
+                projector=None):
     """fit (a LyingFit, or None: none fitted) judged as a lying can on the points of its extent, as
     lying_can judges its own fits: (LyingCan, "") or (None, why). Arguments as lying_can's; min_arc
     (rad): the least arc of side seen (None: config's; the tracker keeps a hidden can's lower bound)."""
@@ -682,7 +688,8 @@ def judge_lying(points, fit, r_eps, sigma, config, search, sensor=None, occluder
     # end's slab only (fresh 4535 of "lying cans touching").
     seen = (np.abs(rho - r) <= r_eps) & mine & (axial >= a_lo) & (axial <= a_hi)
     if arc < min_arc and not (arc >= s.min_occluded_arc and occluders is not None and sensor is not None
-                              and _rest_hidden(fit, lateral[seen], z[seen], a_lo, a_hi, r_eps, sensor, occluders)):
+                              and _rest_hidden(fit, lateral[seen], z[seen], a_lo, a_hi, r_eps, sensor, occluders,
+                                               projector)):
         return None, f"lying: side seen over {arc:.2f} rad < {min_arc:.2f} rad"
     length = float(a_hi - a_lo)
     if length < c.min_can_height:
@@ -702,8 +709,8 @@ def hidden_ends(start, direction, length, radius, r_eps, sensor, occluders, reac
     sensor (3,), projector (3,: the IR projector; None: not known) and occluders (float (N, 3)),
     every point standing on the table; all in the plane frame. An end is hidden when the places of
     the side's half facing the sensor `reach` (m) beyond it all lie behind occluders other than the
-    can's own points, seen from the sensor or in their shadow from the projector
-    (_hidden_where_unseen, nothing of it seen there): the can may go on there unseen ("cluttered
+    can's own points, seen from the sensor, or are unlit by the projector (_hidden_where_unseen,
+    nothing of it seen there): the can may go on there unseen ("cluttered
     table" 3531, 3542: a tall box in front of one end; fresh 6847: a tall can in front, beside whose
     silhouette the end lies in its shadow)."""
     u = np.asarray(direction, dtype=float)[:2]
@@ -726,15 +733,17 @@ def _others(fit, occluders, a_lo, a_hi, r_eps):
     return _from_origin(occluders[~own], fit.origin)
 
 
-def _rest_hidden(fit, side_lateral, side_z, a_lo, a_hi, r_eps, sensor, occluders):
+def _rest_hidden(fit, side_lateral, side_z, a_lo, a_hi, r_eps, sensor, occluders, projector=None):
     """Whether every part of the near half of a lying can's side (fit, its ends at the axial
     coordinates a_lo..a_hi, m) that shows none of its side points (lateral and z coordinates) lies
     behind one of the occluders (float (N, 3), plane frame, m) seen from the sensor ((x, y, z), plane
-    frame), next to both ends: a lying can behind another, touching it, is seen only above the front
-    one (as can_search's upright _rest_hidden)."""
+    frame) or in its shadow from the IR projector ((3,), plane frame; None: not known), next to both
+    ends: a lying can behind another, touching it, is seen only above the front one (as can_search's
+    upright _rest_hidden)."""
     return _hidden_where_unseen((fit.theta, fit.offset, fit.zc, fit.radius), (a_lo + r_eps, a_hi - r_eps),
                                 np.arctan2(side_z - fit.zc, side_lateral - fit.offset),
-                                _from_origin(sensor, fit.origin), _others(fit, occluders, a_lo, a_hi, r_eps))
+                                _from_origin(sensor, fit.origin), _others(fit, occluders, a_lo, a_hi, r_eps),
+                                _from_origin(projector, fit.origin))
 
 
 def _bulging(axial, rho, a_lo, length, sigma, s):

@@ -789,6 +789,23 @@ def test_behind_needs_an_occluder_on_the_ray_and_nearer():
     assert_array_equal(g.behind(places, np.empty((0, 3)), sensor), [False, False])
 
 
+def test_without_depth_behind_an_occluder_or_unlit_by_the_projector():
+    """A structured-light camera gives no depth where a place is behind an occluder seen from the camera,
+    or, the projector known, faces away from it or lies behind an occluder seen from it (its shadow)."""
+    camera, projector = np.array([0.0, 0.0, 1.0]), np.array([0.2, 0.0, 1.0])
+    up = np.array([0.0, 0.0, 1.0])
+    places = np.array([[0.0, 0.0, 0.0], [0.4, 0.0, 0.0], [0.8, 0.0, 0.0], [1.2, 0.0, 0.0]])
+    normals = np.array([up, up, [1.0, 0.0, 0.0], up])
+    # On the camera's ray to the first place; on the projector's ray to the second only.
+    occluders = np.array([[0.0, 0.0, 0.5], [0.3, 0.0, 0.5]])
+    assert_array_equal(g.without_depth(places, normals, occluders, camera), [True, False, False, False])
+    # The third faces +x, away from the projector (at x 0.2); the fourth is lit and seen.
+    assert_array_equal(g.without_depth(places, normals, occluders, camera, projector), [True, True, True, False])
+    assert_array_equal(g.without_depth(places, normals, np.empty((0, 3)), camera, projector),
+                       [False, False, True, False])
+    assert g.without_depth(np.empty((0, 3)), np.empty((0, 3)), occluders, camera, projector).shape == (0,)
+
+
 def test_seen_through_a_solid_cylinder():
     """A point is seen through the cylinder (r 40 mm, 0-100 mm high, sensor 1 m off, 0.5 m up) when its
     sight line crosses it or ends inside it; not beside it, above its top's shadow, or in front."""
