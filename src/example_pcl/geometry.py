@@ -1212,7 +1212,7 @@ def biweight_loss(xy, cx, cy, r, cutoff):
     return float(np.sum(1.0 - (1.0 - t * t) ** 3))
 
 
-def band_run(band_on, band_inside, fraction, min_points, max_gap, blocked=None, starts=3):
+def band_run(band_on, band_inside, fraction, min_points, max_gap, blocked=None, starts=3, across=None):
     """The run of bands along a cylinder's axis that its circle explains: (first, last) band, or None.
 
     band_on, band_inside: points per band on the circle and inside its disc (height bands of an
@@ -1221,13 +1221,15 @@ def band_run(band_on, band_inside, fraction, min_points, max_gap, blocked=None, 
     the start's) on it and no more inside than on it, over gaps of at most max_gap bands; a band
     `blocked` (bool, per band; None: none) ends it, no gap (another object is seen there). Of the
     runs from the fullest band and from the fullest beyond the runs before it (up to `starts`), the
-    one with most points on the circle."""
+    one with most points on the circle; then up over longer gaps that across(first, last) (bands;
+    None: none) says the side is hidden over, to the run beyond each."""
     # A start is a band with no more inside than on the circle (not the lid's band).
     side_like = band_inside <= band_on
     candidates = np.where(side_like, band_on, -1)
+    ends = np.zeros(len(band_on), bool) if blocked is None else np.asarray(blocked, bool)
     # A copy: the runs found block the next ones.
-    blocked = np.zeros(len(band_on), bool) if blocked is None else blocked.copy()
-    best, most = None, -1
+    blocked = ends.copy()
+    best, most, best_good = None, -1, None
     for _ in range(starts):
         start = int(np.argmax(candidates))
         need = max(min_points, fraction * band_on[start])
@@ -1238,11 +1240,21 @@ def band_run(band_on, band_inside, fraction, min_points, max_gap, blocked=None, 
                _last_good(good, blocked, start, range(start + 1, len(good)), max_gap))
         total = int(band_on[run[0]:run[1] + 1][good[run[0]:run[1] + 1]].sum())
         if total > most:
-            best, most = run, total
+            best, most, best_good = run, total, good
         # The next run starts beyond this one and does not reach into it.
         candidates[run[0]:run[1] + 1] = -1
         blocked[run[0]:run[1] + 1] = True
-    return best
+    if best is None or across is None:
+        return best
+    # Not down: below a gap lie the surface a can stands on and what stands beside its base.
+    lo, hi = best
+    while True:
+        beyond = hi + 1
+        while beyond < len(best_good) and not (best_good[beyond] or ends[beyond]):
+            beyond += 1
+        if beyond == len(best_good) or ends[beyond] or beyond - hi - 1 <= max_gap or not across(hi + 1, beyond - 1):
+            return lo, hi
+        hi = _last_good(best_good, ends, beyond, range(beyond + 1, len(best_good)), max_gap)
 
 
 def _last_good(good, blocked, start, order, max_gap):

@@ -167,6 +167,36 @@ def test_band_run_stops_at_a_blocked_band_without_a_gap():
     assert g.band_run(on, inside, 0.2, 3, 1, blocked=np.arange(7) == 4) == (0, 3)
 
 
+def test_band_run_crosses_a_longer_gap_only_where_across_says_the_side_is_hidden():
+    """Fresh 7201's bands: the side below and above an object in front, two empty bands between. Without
+    `across` the fuller run below is taken; across(first, last) asked about the gap (bands 7-8) joins
+    the run above to it, and is not asked across a blocked band (a lid), nor below the run (a
+    support's points lie there)."""
+    on = np.array([0, 5, 14, 13, 15, 14, 12, 0, 0, 29, 31, 0, 0])
+    inside = np.array([0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 71, 5])
+    lid = inside > np.maximum(on, 3)
+    asked = []
+
+    def hidden(first, last):
+        asked.append((first, last))
+        return True
+
+    assert g.band_run(on, inside, 0.2, 3, 1, lid) == (1, 6)
+    assert g.band_run(on, inside, 0.2, 3, 1, lid, across=lambda first, last: False) == (1, 6)
+    assert g.band_run(on, inside, 0.2, 3, 1, lid, across=hidden) == (1, 10)
+    assert asked == [(7, 8)]
+    # The fuller run above the gap: nothing below is joined.
+    above = on.copy()
+    above[9:11] = 90
+    asked.clear()
+    assert g.band_run(above, inside, 0.2, 3, 1, lid, across=hidden) == (9, 10)
+    assert asked == []
+    blocked = lid | (np.arange(len(on)) == 8)
+    asked.clear()
+    assert g.band_run(on, inside, 0.2, 3, 1, blocked, across=hidden) == (1, 6)
+    assert asked == []
+
+
 def test_config_rejects_nonsense():
     """A zero band height is a PerceptionError naming the field."""
     from example_pcl.errors import PerceptionError
@@ -1563,7 +1593,7 @@ def test_a_tapered_round_object_is_rejected_as_tapered_and_a_can_is_not():
                                         ("can touching box", 5035), ("cluttered table", 5004),
                                         ("cluttered table", 5028), ("cluttered table", 6203),
                                         ("cluttered table", 5445), ("can touching box", 6019),
-                                        ("cans touching", 6713)])
+                                        ("cans touching", 6713), ("cluttered table", 7201)])
 def test_development_misses_are_found_where_they_stand(case, seed):
     """Every can of these generated scenes is found within 3 mm of its axis, on its support (base
     within 1 cm, height within 1.5 cm of the truth), and no other upright can is reported."""
