@@ -144,10 +144,10 @@ def fit_lying_cylinders(points, r_eps, min_radius, max_radius, max_gap, directio
     ends, and, if that turned the axis by more than a degree (and left a can's radius on the table),
     the run is found again along it and refitted. With the sensor ((x, y, z), plane frame, m) given,
     only the points on a cylinder's half facing it count (_facing), and with occluders (float (M, 3),
-    plane frame, m) the run goes on over bands where the rest of that half is hidden behind them, or in
-    their shadow from the IR projector (`projector`, (3,), plane frame, m; None: not known)
-    (_through_hidden). At most max_points points (evenly subsampled) are fitted; rms and n_inliers are
-    theirs. The run along the axis is counted on all the points."""
+    plane frame, m) the run goes on over bands where the rest of that half is hidden behind them, or
+    unlit by the IR projector (`projector`, (3,), plane frame, m; None: not known; _through_hidden).
+    At most max_points points (evenly subsampled) are fitted; rms and n_inliers are theirs. The run
+    along the axis is counted on all the points."""
     every = points
     points, origin, q, z, sq = _centred(points, max_points, sensor)
     if len(points) < 3:
@@ -288,8 +288,8 @@ def _explained(q, z, fit, r_eps, sensor, band, fraction, min_points, max_gap, oc
     its crown (the upper side within half a radius of the axis, seen from above: a lower box's top at
     its end, as wide as the can, meets its circle on both flanks). With occluders ((M, 3), m, plane
     frame; q is measured from `origin`, (x, y)), the run goes on over the bands beyond it whose facing half is
-    seen where it is not hidden behind them or in their shadow from the projector ((3,), plane frame,
-    m; None: not known) (_through_hidden). The run then loses the bands at one
+    seen where it is not hidden behind them or unlit by the projector ((3,), plane frame, m; None:
+    not known; _through_hidden). The run then loses the bands at one
     end where no can's side is seen (_without_flat_end: a box's top as high as the can)."""
     t, d, zc, r = fit[:4]
     axial, lateral = _on_axis(q, t)
@@ -587,10 +587,10 @@ def lying_can(points, r_eps, sigma, config, search, sensor=None, occluders=None,
     axis, max_taper, taper_sigmas, max_facet_ratio: a section no rounder than a line); sensor: (x,
     y, z), plane frame (m), or None: only the points on a cylinder's half facing it are its side
     (_facing); occluders (float (N, 3), plane frame, m, or None): every point standing on the
-    table, what may hide part of its side or, lit by the IR projector ((3,), plane frame, m; None: not
-    known), cast a shadow on it (_rest_hidden). The distinct cylinders of
-    fit_lying_cylinders are judged in turn on their extent; the first that passes is the can, else
-    the first one's reason is why not."""
+    table, what may hide part of its side; projector: the IR projector ((3,), plane frame, m; None:
+    not known): the parts of the side it does not light have no depth (_rest_hidden). The distinct
+    cylinders of fit_lying_cylinders are judged in turn on their extent; the first that passes is the
+    can, else the first one's reason is why not."""
     c, s = config, search
     # A can on its side is at most one diameter high: the points above are another object's.
     limit = 2 * c.max_radius + s.lying_gap + 3 * sigma
@@ -737,7 +737,7 @@ def _rest_hidden(fit, side_lateral, side_z, a_lo, a_hi, r_eps, sensor, occluders
     """Whether every part of the near half of a lying can's side (fit, its ends at the axial
     coordinates a_lo..a_hi, m) that shows none of its side points (lateral and z coordinates) lies
     behind one of the occluders (float (N, 3), plane frame, m) seen from the sensor ((x, y, z), plane
-    frame) or in its shadow from the IR projector ((3,), plane frame; None: not known), next to both
+    frame) or is unlit by the IR projector ((3,), plane frame; None: not known), next to both
     ends: a lying can behind another, touching it, is seen only above the front one (as can_search's
     upright _rest_hidden)."""
     return _hidden_where_unseen((fit.theta, fit.offset, fit.zc, fit.radius), (a_lo + r_eps, a_hi - r_eps),
