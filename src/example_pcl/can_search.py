@@ -79,7 +79,7 @@ class CylinderSearchConfig:
     pool_points: at most this many points score them, drawn with weights that favour walls (points
     per wall_cell x wall_cell square seen from above); face_span, face_points: pool points on a straight
     run (seen from above) at least face_span (m) long, of at least face_points points, are a flat face
-    (a box's) and anchor no triplet (flat_faces); verify: the best so many distinct hypotheses
+    (a box's) and anchor no triplet (geometry.flat_faces); verify: the best so many distinct hypotheses
     are verified per round, each first refined by refine_rounds linear fits in its slice;
     fit_points: at most this many side points (evenly subsampled) go into the Levenberg-Marquardt
     fit; max_rounds: per cluster. retries,
@@ -264,83 +264,6 @@ def circle_hypotheses(xy, z, n, rng, min_radius, max_radius, slice_height, partn
     cx, cy, r = circumcircles(xy[anchors[ok]], xy[two[:, 0]], xy[two[:, 1]])
     keep = (r >= min_radius) & (r <= max_radius)
     return cx[keep], cy[keep], r[keep], ((level[anchors[ok]] + 0.5) * slice_height)[keep]
-
-
-def flat_faces(xy, eps, min_span, min_points, rng, tries=32, max_faces=3, max_gap=0.02, *, radii):
-    """Which of the points xy (float64 (M, 2), m, seen from above) lie on a flat vertical face (a box's
-    or prism's): within eps of a line, a run along it at least min_span (m) long with no gap over
-    max_gap (m), of at least min_points points. Up to max_faces lines, each the best of `tries`
-    drawn through two points. A can's side is no such run: a line stays within eps of a circle of
-    radius r over 2 sqrt(2 r eps) only (44 mm for r = 80 mm, eps = 3 mm); nor part of one, a can's
-    front in line with a face past its end (_without_tangent_ends; radii (m): a can's, min and max)."""
-    face = np.zeros(len(xy), bool)
-    for _ in range(max_faces):
-        rest = np.flatnonzero(~face)
-        if len(rest) < max(min_points, 2):
-            break
-        a, b = rest[rng.integers(len(rest), size=(2, tries))]
-        d = xy[b] - xy[a]
-        norm = np.hypot(d[:, 0], d[:, 1])
-        ok = norm >= eps
-        if not ok.any():
-            break
-        a, d = a[ok], d[ok] / norm[ok, None]
-        # Distance of every rest point from every line (T, R): |cross(d, p - p_a)|.
-        px, py = xy[rest, 0], xy[rest, 1]
-        off = np.abs(np.outer(d[:, 1], px) - np.outer(d[:, 0], py)
-                     - (d[:, 1] * xy[a, 0] - d[:, 0] * xy[a, 1])[:, None])
-        best = int(np.argmax((off <= eps).sum(axis=1)))
-        on = np.flatnonzero(off[best] <= eps)
-        rest_along = (xy[rest] - xy[a[best]]) @ d[best]
-        along = rest_along[on]
-        order = np.argsort(along)
-        along = along[order]
-        # The longest run without a gap: two cans' fronts on one tangent line are two short runs.
-        breaks = np.flatnonzero(np.diff(along) > max_gap)
-        starts, ends = np.r_[0, breaks + 1], np.r_[breaks, len(along) - 1]
-        k = int(np.argmax(along[ends] - along[starts]))
-        lo, hi = _without_tangent_ends(along, starts[k], ends[k], min_span, 0.5 * max_gap, radii,
-                                       (xy[rest], rest_along, off[best]))
-        if along[hi] - along[lo] < min_span or hi - lo + 1 < min_points:
-            break
-        face[rest[on[order[lo:hi + 1]]]] = True
-    return face
-
-
-def _without_tangent_ends(along, lo, hi, min_span, gap, radii, nearby, reach=0.01, min_points=6, min_bend=1.5):
-    """The run along[lo..hi] (sorted positions along a line, m) less a piece at either end shorter than
-    min_span (m) beyond a gap over `gap` (m) that bends like a can's front, where the rest still spans
-    min_span: the front of a can in line with a box's face, which the line stays near over a few
-    centimetres a little way past the face's end (fresh 4134 of "can touching box": 32 mm of it 16 mm
-    past the face). nearby: (xy float (M, 2), their positions along the line and distances from it,
-    m) of every point the line was drawn among. Bends: the points within `reach` (m) of the piece,
-    along the line beyond its ends and off it, at least min_points, have their own (algebraic) circle
-    of a radius within radii (m), min_bend times closer to them (rms) than their best line
-    (geometry.line_ratio); a straight piece is the face's, seen past something in front of it."""
-    breaks = lo + np.flatnonzero(np.diff(along[lo:hi + 1]) > gap)
-    xy, near_along, near_off = nearby
-
-    def bends(a, b):
-        # Near the line a can's front is nearly straight (its sagitta within the line's eps): its
-        # curve shows where it leaves the line (fresh 7330, r 33 mm: 28 mm within eps, a line ratio of
-        # 1.04 there).
-        piece = xy[(near_along >= along[a] - reach) & (near_along <= along[b] + reach) & (near_off <= reach)]
-        if len(piece) < min_points:
-            return False
-        kx, ky, kr = (float(v[0]) for v in g.fit_circles_algebraic(piece))
-        return bool(radii[0] <= kr <= radii[1] and g.line_ratio(piece, kx, ky, kr) >= min_bend)
-
-    # The longest end piece shorter than min_span first: a can's front may have a gap of its own (fresh
-    # 6922: 11 mm).
-    for b in breaks[::-1]:
-        if along[b] - along[lo] < min_span and along[hi] - along[b + 1] >= min_span and bends(lo, b):
-            lo = b + 1
-            break
-    for b in breaks[breaks >= lo]:
-        if along[hi] - along[b + 1] < min_span and along[b] - along[lo] >= min_span and bends(b + 1, hi):
-            hi = b
-            break
-    return lo, hi
 
 
 def circle_members(xy, cx, cy, r, eps, sensor=None):
@@ -1446,7 +1369,7 @@ def _rounds(points, bands, free, cans, rejections, ctx):
         tried_circles = []
         # No triplet from a box's or prism's flat faces: circles through their corners outscored a small
         # can beside a big box and took the round's verifications.
-        face = flat_faces(xy, 0.5 * r_eps, s.face_span, s.face_points, ctx.rng, radii=(c.min_radius, c.max_radius))
+        face = g.flat_faces(xy, 0.5 * r_eps, s.face_span, s.face_points, ctx.rng, radii=(c.min_radius, c.max_radius))
         for attempt, (cx, cy, r, z0, axy, az) in enumerate(_draws(xy, z_pool, face, tried, tried_circles, r_eps, ctx)):
             best = best_circles(axy, cx, cy, r, r_eps, s.verify if attempt == 0 else s.retry_verify,
                                 sensor=ctx.sensor, z=az, lid=s.band_height)

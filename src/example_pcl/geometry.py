@@ -791,6 +791,83 @@ def line_ratio(xy, cx, cy, radius):
     return float(line / circle) if circle > 0 else float("inf")
 
 
+def flat_faces(xy, eps, min_span, min_points, rng, tries=32, max_faces=3, max_gap=0.02, *, radii):
+    """Which of the points xy (float64 (M, 2), m, seen from above) lie on a flat vertical face (a box's
+    or prism's): within eps of a line, a run along it at least min_span (m) long with no gap over
+    max_gap (m), of at least min_points points. Up to max_faces lines, each the best of `tries`
+    drawn through two points. A can's side is no such run: a line stays within eps of a circle of
+    radius r over 2 sqrt(2 r eps) only (44 mm for r = 80 mm, eps = 3 mm); nor part of one, a can's
+    front in line with a face past its end (_without_tangent_ends; radii (m): a can's, min and max)."""
+    face = np.zeros(len(xy), bool)
+    for _ in range(max_faces):
+        rest = np.flatnonzero(~face)
+        if len(rest) < max(min_points, 2):
+            break
+        a, b = rest[rng.integers(len(rest), size=(2, tries))]
+        d = xy[b] - xy[a]
+        norm = np.hypot(d[:, 0], d[:, 1])
+        ok = norm >= eps
+        if not ok.any():
+            break
+        a, d = a[ok], d[ok] / norm[ok, None]
+        # Distance of every rest point from every line (T, R): |cross(d, p - p_a)|.
+        px, py = xy[rest, 0], xy[rest, 1]
+        off = np.abs(np.outer(d[:, 1], px) - np.outer(d[:, 0], py)
+                     - (d[:, 1] * xy[a, 0] - d[:, 0] * xy[a, 1])[:, None])
+        best = int(np.argmax((off <= eps).sum(axis=1)))
+        on = np.flatnonzero(off[best] <= eps)
+        rest_along = (xy[rest] - xy[a[best]]) @ d[best]
+        along = rest_along[on]
+        order = np.argsort(along)
+        along = along[order]
+        # The longest run without a gap: two cans' fronts on one tangent line are two short runs.
+        breaks = np.flatnonzero(np.diff(along) > max_gap)
+        starts, ends = np.r_[0, breaks + 1], np.r_[breaks, len(along) - 1]
+        k = int(np.argmax(along[ends] - along[starts]))
+        lo, hi = _without_tangent_ends(along, starts[k], ends[k], min_span, 0.5 * max_gap, radii,
+                                       (xy[rest], rest_along, off[best]))
+        if along[hi] - along[lo] < min_span or hi - lo + 1 < min_points:
+            break
+        face[rest[on[order[lo:hi + 1]]]] = True
+    return face
+
+
+def _without_tangent_ends(along, lo, hi, min_span, gap, radii, nearby, reach=0.01, min_points=6, min_bend=1.5):
+    """The run along[lo..hi] (sorted positions along a line, m) less a piece at either end shorter than
+    min_span (m) beyond a gap over `gap` (m) that bends like a can's front, where the rest still spans
+    min_span: the front of a can in line with a box's face, which the line stays near over a few
+    centimetres a little way past the face's end (fresh 4134 of "can touching box": 32 mm of it 16 mm
+    past the face). nearby: (xy float (M, 2), their positions along the line and distances from it,
+    m) of every point the line was drawn among. Bends: the points within `reach` (m) of the piece,
+    along the line beyond its ends and off it, at least min_points, have their own (algebraic) circle
+    of a radius within radii (m), min_bend times closer to them (rms) than their best line
+    (line_ratio); a straight piece is the face's, seen past something in front of it."""
+    breaks = lo + np.flatnonzero(np.diff(along[lo:hi + 1]) > gap)
+    xy, near_along, near_off = nearby
+
+    def bends(a, b):
+        # Near the line a can's front is nearly straight (its sagitta within the line's eps): its
+        # curve shows where it leaves the line (fresh 7330, r 33 mm: 28 mm within eps, a line ratio of
+        # 1.04 there).
+        piece = xy[(near_along >= along[a] - reach) & (near_along <= along[b] + reach) & (near_off <= reach)]
+        if len(piece) < min_points:
+            return False
+        kx, ky, kr = (float(v[0]) for v in fit_circles_algebraic(piece))
+        return bool(radii[0] <= kr <= radii[1] and line_ratio(piece, kx, ky, kr) >= min_bend)
+
+    # The longest end piece shorter than min_span first: a can's front may have a gap of its own (fresh
+    # 6922: 11 mm).
+    for b in breaks[::-1]:
+        if along[b] - along[lo] < min_span and along[hi] - along[b + 1] >= min_span and bends(lo, b):
+            lo = b + 1
+            break
+    for b in breaks[breaks >= lo]:
+        if along[hi] - along[b + 1] < min_span and along[b] - along[lo] >= min_span and bends(b + 1, hi):
+            hi = b
+            break
+    return lo, hi
+
+
 def _halves(xy, cx, cy):
     """The points xy (float (N, 2), m) in two halves, split at the middle of the arc they span around
     (cx, cy) (m): float64 (N1, 2), (N2, 2)."""

@@ -66,54 +66,6 @@ def test_circumcircles_pass_through_their_points():
     assert np.isinf(cs.circumcircles(line[None, 0], line[None, 1], line[None, 2])[2][0])
 
 
-def test_flat_faces_finds_a_box_face_and_not_a_can_side():
-    """Seen from above, a box's face (a straight run of 10 cm) is a flat face; a can's half side (r 8 cm,
-    the flattest allowed) and two cans' fronts on one tangent line are none."""
-    rng = np.random.default_rng(3)
-    face = np.c_[np.linspace(0.0, 0.1, 60), np.full(60, 0.2)] + rng.normal(0, 0.001, (60, 2))
-    angle = np.linspace(0.2, np.pi - 0.2, 60)
-    side = np.c_[0.3 + 0.08 * np.cos(angle), -0.08 * np.sin(angle)] + rng.normal(0, 0.001, (60, 2))
-    fronts = np.concatenate([np.c_[0.03 * np.cos(angle) + dx, -0.03 * np.sin(angle)] for dx in (-0.5, -0.44)])
-    found = cs.flat_faces(np.concatenate([face, side, fronts]), 0.003, 0.06, 12, rng, radii=RADII)
-    assert found[:60].mean() > 0.9
-    assert not found[60:].any()
-
-
-def test_a_can_front_in_line_with_a_box_face_past_its_end_is_no_part_of_the_face():
-    """A box's face (8 cm) and, 16 mm past its end, the front of a can of r 29 mm tangent to its line
-    (fresh 4134 of "can touching box"): the face is flat, the can's front is not. A face with a gap of
-    12 mm in its middle, each part shorter than the face span, stays one face; so does a straight
-    piece of it 16 mm past the rest (seen past something in front)."""
-    rng = np.random.default_rng(5)
-    face = np.c_[np.linspace(0.0, 0.08, 50), np.zeros(50)] + rng.normal(0, 0.0007, (50, 2))
-    angle = np.linspace(-np.pi / 2 - 0.6, -np.pi / 2 + 0.6, 30)
-    front = np.c_[0.096 + 0.029 * np.cos(angle) + 0.016, 0.029 + 0.029 * np.sin(angle)]
-    found = cs.flat_faces(np.concatenate([face, front]), 0.003, 0.06, 12, rng, radii=RADII)
-    assert found[:50].mean() > 0.9
-    assert not found[50:].any()
-    gapped = np.concatenate([face[face[:, 0] < 0.034], face[face[:, 0] > 0.046]])
-    assert cs.flat_faces(gapped, 0.003, 0.06, 12, np.random.default_rng(5), radii=RADII).all()
-    piece = np.c_[np.linspace(0.096, 0.126, 20), np.zeros(20)] + rng.normal(0, 0.0007, (20, 2))
-    assert cs.flat_faces(np.concatenate([face, piece]), 0.003, 0.06, 12, np.random.default_rng(5), radii=RADII).all()
-
-
-@pytest.mark.parametrize("hidden", [None, (0.002, 0.013)])
-def test_a_can_front_tangent_to_the_face_of_a_box_it_touches_is_no_part_of_the_face(hidden):
-    """A box's face (8 cm) and the front of a can of r 33 mm touching the face's end, tangent to its
-    line, seen with 1.5 mm of noise (fresh 7330 of "can touching box"): within eps of the line the
-    front is nearly straight, its curve shows where it leaves the line. The face is flat, the front is
-    not; also when 11 mm of the front are missing near where it touches the line (fresh 6922)."""
-    rng = np.random.default_rng(5)
-    face = np.c_[np.linspace(0.0, 0.08, 50), np.zeros(50)] + rng.normal(0, 0.0007, (50, 2))
-    angle = np.linspace(-np.pi / 2 - 1.0, -np.pi / 2 + 1.0, 30)
-    front = np.c_[0.113 + 0.033 * np.cos(angle), 0.033 + 0.033 * np.sin(angle)] + rng.normal(0, 0.0015, (30, 2))
-    if hidden is not None:
-        front = front[(front[:, 0] - 0.113 < hidden[0]) | (front[:, 0] - 0.113 > hidden[1])]
-    found = cs.flat_faces(np.concatenate([face, front]), 0.003, 0.06, 12, np.random.default_rng(5), radii=RADII)
-    assert found[:50].mean() > 0.9
-    assert not found[50:].any()
-
-
 def test_the_last_draw_retries_a_circle_a_tried_one_took_out_but_none_like_one_tried():
     """Of the first draw's circles, _suppressed_by keeps one that a circle tried took out as sharing its
     points though elsewhere, and not one like a circle tried (within eps), even when it shares the
@@ -142,7 +94,7 @@ def test_the_first_draw_ranks_its_circles_on_the_points_off_the_flat_faces(monke
     xy = np.concatenate([front, side, can]) + rng.normal(0, 0.0007, (99, 2))
     z = rng.uniform(0.01, 0.12, len(xy))
     r_eps = 0.006
-    face = cs.flat_faces(xy, 0.5 * r_eps, 0.06, 12, rng, radii=RADII)
+    face = g.flat_faces(xy, 0.5 * r_eps, 0.06, 12, rng, radii=RADII)
     assert face[:70].mean() > 0.9 and not face[70:].any()
     ctx = cs._Context(config=af.AutoConfig(), search=cs.CylinderSearchConfig(), T_sensor_from_plane=np.eye(4),
                       sensor=np.array([0.0, -0.8, 0.7]), standing=np.c_[xy, z], rng=rng, found=[])

@@ -11,12 +11,14 @@ import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 from scipy.optimize import least_squares
 
+from example_pcl import auto_finder as af
 from example_pcl import geometry as g
 from example_pcl import scene as sc
 from example_pcl import transforms
 from example_pcl.errors import PerceptionError
 
 CAN_R, CAN_H = 0.033, 0.122
+RADII = (af.AutoConfig().min_radius, af.AutoConfig().max_radius)  # a can's, m
 
 
 # --- references and helpers -----------------------------------------------------------------------
@@ -903,6 +905,54 @@ def test_line_ratio_tells_one_face_from_a_short_arc():
     face = np.c_[np.full(400, r), rng.uniform(-0.014, 0.014, 400)] + rng.normal(0.0, noise, (400, 2))
     assert g.line_ratio(face, 0.0, 0.0, r) < 0.9
     assert np.isnan(g.line_ratio(arc[:2], 0.0, 0.0, r))
+
+
+def test_flat_faces_finds_a_box_face_and_not_a_can_side():
+    """Seen from above, a box's face (a straight run of 10 cm) is a flat face; a can's half side (r 8 cm,
+    the flattest allowed) and two cans' fronts on one tangent line are none."""
+    rng = np.random.default_rng(3)
+    face = np.c_[np.linspace(0.0, 0.1, 60), np.full(60, 0.2)] + rng.normal(0, 0.001, (60, 2))
+    angle = np.linspace(0.2, np.pi - 0.2, 60)
+    side = np.c_[0.3 + 0.08 * np.cos(angle), -0.08 * np.sin(angle)] + rng.normal(0, 0.001, (60, 2))
+    fronts = np.concatenate([np.c_[0.03 * np.cos(angle) + dx, -0.03 * np.sin(angle)] for dx in (-0.5, -0.44)])
+    found = g.flat_faces(np.concatenate([face, side, fronts]), 0.003, 0.06, 12, rng, radii=RADII)
+    assert found[:60].mean() > 0.9
+    assert not found[60:].any()
+
+
+def test_a_can_front_in_line_with_a_box_face_past_its_end_is_no_part_of_the_face():
+    """A box's face (8 cm) and, 16 mm past its end, the front of a can of r 29 mm tangent to its line
+    (fresh 4134 of "can touching box"): the face is flat, the can's front is not. A face with a gap of
+    12 mm in its middle, each part shorter than the face span, stays one face; so does a straight
+    piece of it 16 mm past the rest (seen past something in front)."""
+    rng = np.random.default_rng(5)
+    face = np.c_[np.linspace(0.0, 0.08, 50), np.zeros(50)] + rng.normal(0, 0.0007, (50, 2))
+    angle = np.linspace(-np.pi / 2 - 0.6, -np.pi / 2 + 0.6, 30)
+    front = np.c_[0.096 + 0.029 * np.cos(angle) + 0.016, 0.029 + 0.029 * np.sin(angle)]
+    found = g.flat_faces(np.concatenate([face, front]), 0.003, 0.06, 12, rng, radii=RADII)
+    assert found[:50].mean() > 0.9
+    assert not found[50:].any()
+    gapped = np.concatenate([face[face[:, 0] < 0.034], face[face[:, 0] > 0.046]])
+    assert g.flat_faces(gapped, 0.003, 0.06, 12, np.random.default_rng(5), radii=RADII).all()
+    piece = np.c_[np.linspace(0.096, 0.126, 20), np.zeros(20)] + rng.normal(0, 0.0007, (20, 2))
+    assert g.flat_faces(np.concatenate([face, piece]), 0.003, 0.06, 12, np.random.default_rng(5), radii=RADII).all()
+
+
+@pytest.mark.parametrize("hidden", [None, (0.002, 0.013)])
+def test_a_can_front_tangent_to_the_face_of_a_box_it_touches_is_no_part_of_the_face(hidden):
+    """A box's face (8 cm) and the front of a can of r 33 mm touching the face's end, tangent to its
+    line, seen with 1.5 mm of noise (fresh 7330 of "can touching box"): within eps of the line the
+    front is nearly straight, its curve shows where it leaves the line. The face is flat, the front is
+    not; also when 11 mm of the front are missing near where it touches the line (fresh 6922)."""
+    rng = np.random.default_rng(5)
+    face = np.c_[np.linspace(0.0, 0.08, 50), np.zeros(50)] + rng.normal(0, 0.0007, (50, 2))
+    angle = np.linspace(-np.pi / 2 - 1.0, -np.pi / 2 + 1.0, 30)
+    front = np.c_[0.113 + 0.033 * np.cos(angle), 0.033 + 0.033 * np.sin(angle)] + rng.normal(0, 0.0015, (30, 2))
+    if hidden is not None:
+        front = front[(front[:, 0] - 0.113 < hidden[0]) | (front[:, 0] - 0.113 > hidden[1])]
+    found = g.flat_faces(np.concatenate([face, front]), 0.003, 0.06, 12, np.random.default_rng(5), radii=RADII)
+    assert found[:50].mean() > 0.9
+    assert not found[50:].any()
 
 
 def test_rim_circle_of_a_lid_seen_in_part():
