@@ -892,24 +892,53 @@ def facet_ratio(xy, cx, cy, radius):
     return float(ratio)
 
 
-def rectangularity(xy):
-    """How much of its smallest enclosing rectangle the convex hull of points (float (N, 2), m) fills
-    (dimensionless): pi / 4 for a disc (a can's lid), up to about 0.85 for a disc a straight edge cuts
-    short, 1 for a rectangle (a box's top). NaN for fewer than 3 points or a degenerate hull. The
-    smallest rectangle has a side along a hull edge (rotating calipers)."""
+@dataclass(frozen=True)
+class Rectangle:
+    """A rectangle seen from above (m): centre (2,), axes (2, 2: unit rows along its sides), half (2,:
+    half its side lengths), fill: how much of it the convex hull of the points it encloses fills."""
+
+    centre: np.ndarray
+    axes: np.ndarray
+    half: np.ndarray
+    fill: float
+
+    def contains(self, xy, reach=0.0):
+        """Which of the points xy (float (N, 2), m) lie inside it grown by reach (m): bool (N,)."""
+        local = np.abs((np.asarray(xy, dtype=float)[:, :2] - self.centre) @ self.axes.T)
+        return (local <= self.half + reach).all(axis=1)
+
+
+def enclosing_rectangle(xy):
+    """The smallest Rectangle enclosing points (float (N, 2), m), or None for fewer than 3 points or a
+    degenerate hull. It has a side along a hull edge (rotating calipers)."""
     xy = np.asarray(xy, dtype=float)
     if len(xy) < 3:
-        return float("nan")
+        return None
     try:
         hull = ConvexHull(xy)
     except QhullError:
-        return float("nan")
+        return None
     corners = xy[hull.vertices]
     edges = np.diff(np.vstack([corners, corners[:1]]), axis=0)
     u = edges / np.linalg.norm(edges, axis=1, keepdims=True)
-    along, across = corners @ u.T, corners @ np.column_stack([-u[:, 1], u[:, 0]]).T
-    smallest = float(np.min(np.ptp(along, axis=0) * np.ptp(across, axis=0)))
-    return float(hull.volume / smallest) if smallest > 0 else float("nan")
+    v = np.column_stack([-u[:, 1], u[:, 0]])
+    along, across = corners @ u.T, corners @ v.T
+    area = np.ptp(along, axis=0) * np.ptp(across, axis=0)
+    k = int(np.argmin(area))
+    if not area[k] > 0:
+        return None
+    middle = np.array([along[:, k].max() + along[:, k].min(), across[:, k].max() + across[:, k].min()]) / 2
+    axes = np.array([u[k], v[k]])
+    return Rectangle(centre=middle @ axes, axes=axes, half=np.array([np.ptp(along[:, k]), np.ptp(across[:, k])]) / 2,
+                     fill=float(hull.volume / area[k]))
+
+
+def rectangularity(xy):
+    """How much of its smallest enclosing rectangle the convex hull of points (float (N, 2), m) fills
+    (dimensionless): pi / 4 for a disc (a can's lid), up to about 0.85 for a disc a straight edge cuts
+    short, 1 for a rectangle (a box's top). NaN for fewer than 3 points or a degenerate hull."""
+    rectangle = enclosing_rectangle(xy)
+    return float("nan") if rectangle is None else rectangle.fill
 
 
 def split_ratio(xy, cx, cy, radius, min_points=6):

@@ -125,6 +125,49 @@ def _distinct(members, score, count, max_overlap=0.5, scan=64):
     return [order[i] for i in taken]
 
 
+def _taller_box(q, z, eps, min_width=0.05, reach=0.005, min_beside=15, taller=0.004, min_rectangularity=0.9):
+    """Which of a cluster's points (q: (x, y) float (N, 2), z (N,), plane frame, m) belong to a box
+    standing taller than what touches it, or None: the points under its top, within `reach` (m) of
+    the top's smallest enclosing rectangle seen from above. Its top: the fullest level face wider than
+    min_width (m) every way (_level_face, eps), the cluster's highest, filling at least
+    min_rectangularity of that rectangle (a can's lid fills pi / 4); at least min_beside points lie
+    outside it, below the top, and the box rises at least `taller` (m) above all of them."""
+    top = _level_face(q, z, eps, min_width, np.ones(len(z), bool))
+    # Its top is the cluster's: nothing stands higher (whose side, at the top's height, would join it).
+    if not top.any() or z.max() > z[top].mean() + 2 * eps:
+        return None
+    rectangle = g.enclosing_rectangle(q[top])
+    if rectangle is None or rectangle.fill < min_rectangularity:
+        return None
+    box = rectangle.contains(q, reach)
+    beside = ~box & (z < z[top].mean() - eps)
+    if np.count_nonzero(beside) < min_beside or z.max() - z[~box].max() < taller:
+        return None
+    return box
+
+
+def _level_face(xy, z, eps, min_width, free, bin_width=0.002, min_points=10):
+    """Which of the `free` points (bool (N,); xy float (N, 2), z (N,), m) lie within eps (m) of the
+    height most of them share (in bin_width bins), when they are at least min_points and span at least
+    min_width (m) every way seen from above (a box's top; the minor axis of their spread): bool (N,)."""
+    face = np.zeros(len(z), bool)
+    rest = np.flatnonzero(free)
+    if len(rest) < min_points:
+        return face
+    zr = z[rest]
+    bins = ((zr - zr.min()) / bin_width).astype(np.int64)
+    level = zr[bins == np.argmax(np.bincount(bins))].mean()
+    on = rest[np.abs(zr - level) <= eps]
+    if len(on) < min_points:
+        return face
+    spread = xy[on] - xy[on].mean(axis=0)
+    minor = np.linalg.eigvalsh(spread.T @ spread / len(on))[0]
+    # A uniform strip of width w has variance w^2 / 12 across it.
+    if np.sqrt(12 * max(minor, 0.0)) >= min_width:
+        face[on] = True
+    return face
+
+
 def fit_lying_cylinders(points, r_eps, min_radius, max_radius, max_gap, directions=36, iterations=15,
                         max_points=300, count=3, subset_radius=0.05, band=0.01, band_fraction=0.2, min_band_points=3,
                         max_band_gap=1, sensor=None, min_own=0.6, occluders=None, projector=None):
@@ -147,7 +190,8 @@ def fit_lying_cylinders(points, r_eps, min_radius, max_radius, max_gap, directio
     plane frame, m) the run goes on over bands where the rest of that half is hidden behind them, or
     unlit by the IR projector (`projector`, (3,), plane frame, m; None: not known; _through_hidden).
     At most max_points points (evenly subsampled) are fitted; rms and n_inliers are theirs. The run
-    along the axis is counted on all the points."""
+    along the axis is counted on all the points. When no cylinder is left and a box stands taller than
+    what touches it (_taller_box), the circles are drawn once more from the subsets without its points."""
     every = points
     points, origin, q, z, sq = _centred(points, max_points, sensor)
     if len(points) < 3:
@@ -157,27 +201,6 @@ def fit_lying_cylinders(points, r_eps, min_radius, max_radius, max_gap, directio
     q_every, z_every = every[:, :2] - origin, every[:, 2]
     theta = np.arange(directions) * np.pi / directions
     lateral = -q[:, 0][None, :] * np.sin(theta)[:, None] + q[:, 1][None, :] * np.cos(theta)[:, None]
-    subsets = _subsets(q, subset_radius, seeds=8)
-    cl, cz, r = _kasa(q, z, theta, subsets)  # (K, D) each
-    # Only circles of about a can's radius that about touch the table are scored and refined. Kasa fits a
-    # partial arc too small, floating above the table; one reaching under it is no can's (and a
-    # failed hypothesis still hides its duplicates).
-    with np.errstate(invalid="ignore"):
-        ok = np.flatnonzero((np.isfinite(r) & (r >= 0.5 * min_radius) & (r <= 1.5 * max_radius)
-                             & (cz - r <= 0.25 * r + 2 * max_gap) & (r - cz <= max_gap)).ravel())
-    k_ok, d_ok = np.divmod(ok, directions)
-    r_ok = r[k_ok, d_ok, None]
-    rho2 = (lateral[d_ok] - cl[k_ok, d_ok, None]) ** 2 + (z - cz[k_ok, d_ok, None]) ** 2
-    members = (rho2 <= (r_ok + r_eps) ** 2) & (rho2 >= np.maximum(r_ok - r_eps, 0.0) ** 2)
-    # A piece of a can lies on its circle: a circle that leaves most of its subset off is none.
-    own = (members & subsets[k_ok]).sum(axis=1) / np.maximum(subsets[k_ok].sum(axis=1), 1)
-    # Ranked by how close to its circle its members lie (each weighs (1 - (residual / r_eps)^2)^2), not
-    # how many: over neighbouring directions a subset's circles hold about as many points, and the one
-    # nearest the axis lets the refinement reach the can.
-    score = np.zeros(len(own))
-    held = np.flatnonzero(own >= min_own)
-    weight = (1 - (np.sqrt(rho2[held]) - r_ok[held]) ** 2 / r_eps ** 2) ** 2
-    score[held] = np.where(members[held], weight, 0.0).sum(axis=1)
 
     def can_sized(fit):  # (theta, offset, zc, r, ...): a can's radius, its axis one radius above the table
         return min_radius <= fit[3] <= max_radius and abs(fit[2] - fit[3]) <= max_gap
@@ -189,28 +212,61 @@ def fit_lying_cylinders(points, r_eps, min_radius, max_radius, max_gap, directio
     def without_ends(fit, run):
         return _without_ends(q, z, origin, fit, r_eps, iterations, max_radius, max_gap, sq, run, band)
 
-    fits = []
-    for h in _distinct(members, score, count):
-        k, d = k_ok[h], d_ok[h]
-        # First on its subset (a piece of one can), then on the run of bands along the axis it explains.
-        fit = _refine(q, z, theta[d], cl[k, d], cz[k, d], r[k, d], r_eps, iterations, subsets[k], max_radius, max_gap,
-                      sq)
-        # No can's radius, or not on the table: the refits below would not make it one.
-        if fit is None or not can_sized(fit):
-            continue
-        # Only the part of the axis the circle explains: not a neighbour's face beyond its end.
-        run = explained(fit)
-        if run is None:
-            continue
-        refit = without_ends(fit, run)
-        # A fit on a piece of the can may point a few degrees off its axis, and its circle explains a
-        # shorter run along it: once more along the refitted axis (if it can be a can's).
-        turned = (refit.theta, refit.offset, refit.zc, refit.radius, refit.rms, refit.n_inliers)
-        if abs(np.sin(refit.theta - fit[0])) > np.sin(np.radians(1)) and can_sized(turned):
-            again = explained(turned)
-            if again is not None and again != run:
-                refit = without_ends(turned, again)
-        fits.append(refit)
+    def scan(subsets):  # the distinct fits of the circles drawn from these subsets
+        cl, cz, r = _kasa(q, z, theta, subsets)  # (K, D) each
+        # Only circles of about a can's radius that about touch the table are scored and refined. Kasa
+        # fits a partial arc too small, floating above the table; one reaching under it is no can's (and
+        # a failed hypothesis still hides its duplicates).
+        with np.errstate(invalid="ignore"):
+            ok = np.flatnonzero((np.isfinite(r) & (r >= 0.5 * min_radius) & (r <= 1.5 * max_radius)
+                                 & (cz - r <= 0.25 * r + 2 * max_gap) & (r - cz <= max_gap)).ravel())
+        k_ok, d_ok = np.divmod(ok, directions)
+        r_ok = r[k_ok, d_ok, None]
+        rho2 = (lateral[d_ok] - cl[k_ok, d_ok, None]) ** 2 + (z - cz[k_ok, d_ok, None]) ** 2
+        members = (rho2 <= (r_ok + r_eps) ** 2) & (rho2 >= np.maximum(r_ok - r_eps, 0.0) ** 2)
+        # A piece of a can lies on its circle: a circle that leaves most of its subset off is none.
+        own = (members & subsets[k_ok]).sum(axis=1) / np.maximum(subsets[k_ok].sum(axis=1), 1)
+        # Ranked by how close to its circle its members lie (each weighs (1 - (residual / r_eps)^2)^2),
+        # not how many: over neighbouring directions a subset's circles hold about as many points, and
+        # the one nearest the axis lets the refinement reach the can.
+        score = np.zeros(len(own))
+        held = np.flatnonzero(own >= min_own)
+        weight = (1 - (np.sqrt(rho2[held]) - r_ok[held]) ** 2 / r_eps ** 2) ** 2
+        score[held] = np.where(members[held], weight, 0.0).sum(axis=1)
+
+        fits = []
+        for h in _distinct(members, score, count):
+            k, d = k_ok[h], d_ok[h]
+            # First on its subset (a piece of one can), then on the run of bands along the axis it explains.
+            fit = _refine(q, z, theta[d], cl[k, d], cz[k, d], r[k, d], r_eps, iterations, subsets[k], max_radius,
+                          max_gap, sq)
+            # No can's radius, or not on the table: the refits below would not make it one.
+            if fit is None or not can_sized(fit):
+                continue
+            # Only the part of the axis the circle explains: not a neighbour's face beyond its end.
+            run = explained(fit)
+            if run is None:
+                continue
+            refit = without_ends(fit, run)
+            # A fit on a piece of the can may point a few degrees off its axis, and its circle explains a
+            # shorter run along it: once more along the refitted axis (if it can be a can's).
+            turned = (refit.theta, refit.offset, refit.zc, refit.radius, refit.rms, refit.n_inliers)
+            if abs(np.sin(refit.theta - fit[0])) > np.sin(np.radians(1)) and can_sized(turned):
+                again = explained(turned)
+                if again is not None and again != run:
+                    refit = without_ends(turned, again)
+            fits.append(refit)
+        return fits
+
+    subsets = _subsets(q, subset_radius, seeds=8)
+    fits = scan(subsets)
+    if not fits:
+        # A box taller than a lying can touching its side has points in every subset of the can's,
+        # which pull its circles off (fresh 7144 of "lying can touching box"): once more without them.
+        box = _taller_box(q, z, 0.5 * r_eps)
+        if box is not None:
+            subsets = subsets & ~box
+            fits = scan(subsets[np.count_nonzero(subsets, axis=1) >= 3])
     return sorted(fits, key=lambda f: -f.n_inliers)
 
 

@@ -850,6 +850,24 @@ def test_rectangularity_tells_a_boxs_top_from_a_lid():
     assert np.isnan(g.rectangularity(np.c_[np.arange(5.0), 2 * np.arange(5.0)]))
 
 
+def test_enclosing_rectangle_of_a_turned_box_top():
+    """A 46 x 42 mm box's top turned by 0.7 rad about (0.2, 0.1): its smallest enclosing rectangle has
+    that centre, sides along the turned axes and those lengths; it contains the top and, grown by 5 mm,
+    a point 4 mm beyond a side, not one 6 mm beyond; fewer than 3 points: None."""
+    step = 0.001
+    top = np.mgrid[-0.023:0.0231:step, -0.021:0.0211:step].reshape(2, -1).T
+    turn = np.array([[np.cos(0.7), -np.sin(0.7)], [np.sin(0.7), np.cos(0.7)]])
+    rectangle = g.enclosing_rectangle(top @ turn.T + (0.2, 0.1))
+    assert_allclose(rectangle.centre, (0.2, 0.1), atol=1e-9)
+    assert_allclose(sorted(rectangle.half), (0.021, 0.023), atol=1e-9)
+    long_side = rectangle.axes[int(np.argmax(rectangle.half))]
+    assert abs(abs(long_side @ turn[:, 0]) - 1) < 1e-9
+    assert rectangle.contains(top @ turn.T + (0.2, 0.1), 1e-9).all()  # its corners on its sides
+    beyond = np.array([[0.027, 0.0], [0.029, 0.0]]) @ turn.T + (0.2, 0.1)
+    assert rectangle.contains(beyond, 0.005).tolist() == [True, False]
+    assert g.enclosing_rectangle(top[:2]) is None
+
+
 def test_facet_ratio_tells_a_corner_from_an_arc():
     """Noisy points over 2.4 rad of a circle: both halves curve (ratio above 1); the two faces of a
     square's corner that the circle touches: both halves straight (below 1); too few points: NaN."""
