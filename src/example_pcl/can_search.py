@@ -398,7 +398,13 @@ def _facing(x, y, cx, cy, r, ctx):
 
 
 class _TooFew(str):
-    """verify's reason when too few side points lie on the circle to judge it by (a str as every reason)."""
+    """verify's reason when too few side points (`count`) lie on the circle to judge it by (a str as every
+    reason)."""
+
+    def __new__(cls, count, least):
+        reason = super().__new__(cls, f"{count} points on the circle (min {least})")
+        reason.count = count
+        return reason
 
 
 def verify(free, cx, cy, r, ctx, z0=None, again=True, rim=False, split=True):
@@ -489,7 +495,7 @@ def verify(free, cx, cy, r, ctx, z0=None, again=True, rim=False, split=True):
     side = on & (z >= z_lo) & (z < z_end)
     n_side = int(np.count_nonzero(side))
     if n_side < c.min_fit_points:
-        return None, _TooFew(f"{n_side} points on the circle (min {c.min_fit_points})"), None
+        return None, _TooFew(n_side, c.min_fit_points), None
 
     def claim(x0=None, y0=None, radius=None, z_from=None, hollow=False, with_lid=False):
         """The points of a round object that is no can: its disc over the run, from z_from (m) when
@@ -1552,10 +1558,13 @@ def _lid_judged(free, z_lid, lid, sigma, r_eps, ctx):
         under = (np.abs(dist - r) <= 2 * r_eps) & (z < hidden_below) & facing
         refit = np.count_nonzero(under) >= c.min_fit_points
         joint = _rim_with_side(rim, pts[under], lid, sigma, r_eps, ctx) if refit else None
-        if refit and joint is None and not isinstance(reason, _TooFew):
-            # No such circle: no can, unless the rim's own circle had too few side points to judge a side
-            # by, hidden then, as below (fresh 6713 of "cans touching": a can behind a wider one, touching
-            # it, its lid whole, 27 points of its side on its rim's circle).
+        # Too few on the circle to judge a side by, and most of the points near it under the lid: hidden
+        # (fresh 6713 of "cans touching": a can behind a wider one, touching it, its lid whole, 27 of its
+        # 44). Too few of those: another surface is seen where the side would be (fresh 7506 of "boxes
+        # and prisms": a tall box's face tangent to the circle of its top's "rim", none of its 262).
+        too_few = isinstance(reason, _TooFew) and reason.count >= 0.5 * np.count_nonzero(under)
+        if refit and joint is None and not too_few:
+            # No such circle: no can, unless too few to judge, hidden then, as below.
             return None, "", None
         if joint is not None:
             can, reason, claim = _rim_verdict(free, joint.cx, joint.cy, joint.radius, ctx)

@@ -1286,6 +1286,15 @@ def test_a_box_tops_rim_pins_no_narrow_side_with_any_search_seed():
     assert _false_cans("boxes and prisms", 6140, range(12)) == []
 
 
+def test_a_tall_boxs_face_tangent_to_its_tops_rim_is_no_hidden_can_with_any_search_seed():
+    """Fresh 7506 of "boxes and prisms", search seeds 0-5: a box 19 cm high, its top seen sparsely (a
+    "lid" of r 20 mm passing the rim tests), its front face tangent to that circle: 262 points near the
+    circle under the lid, none on the side verify judged (their bands off the circle), were too few to
+    judge a side by, a hidden can's (seed 0: a false can). Too few to judge is hidden only when most
+    of the points near the circle are on that side."""
+    assert _false_cans("boxes and prisms", 7506, range(6)) == []
+
+
 def test_the_lower_part_of_a_claimed_mug_is_no_can_with_any_search_seed():
     """Fresh 6128 of "cluttered table", search seeds 0-11: a mug behind a cup, its inside seen above
     60 mm, claimed from there up as hollow; its side below, seen beside the cup over 0.69 rad on the
