@@ -892,7 +892,7 @@ def facet_ratio(xy, cx, cy, radius):
     return float(ratio)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Rectangle:
     """A rectangle seen from above (m): centre (2,), axes (2, 2: unit rows along its sides), half (2,:
     half its side lengths), fill: how much of it the convex hull of the points it encloses fills."""
