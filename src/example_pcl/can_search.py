@@ -398,12 +398,12 @@ def _facing(x, y, cx, cy, r, ctx):
 
 
 class _TooFew(str):
-    """verify's reason when too few side points (`count`) lie on the circle to judge it by (a str as every
-    reason)."""
+    """verify's reason when too few side points (`n_points`) lie on the circle to judge it by (a str as
+    every reason)."""
 
-    def __new__(cls, count, least):
-        reason = super().__new__(cls, f"{count} points on the circle (min {least})")
-        reason.count = count
+    def __new__(cls, n_points, least):
+        reason = super().__new__(cls, f"{n_points} points on the circle (min {least})")
+        reason.n_points = n_points  # not `count`: str has that method
         return reason
 
 
@@ -1562,7 +1562,7 @@ def _lid_judged(free, z_lid, lid, sigma, r_eps, ctx):
         # (fresh 6713 of "cans touching": a can behind a wider one, touching it, its lid whole, 27 of its
         # 44). Too few of those: another surface is seen where the side would be (fresh 7506 of "boxes
         # and prisms": a tall box's face tangent to the circle of its top's "rim", none of its 262).
-        too_few = isinstance(reason, _TooFew) and reason.count >= 0.5 * np.count_nonzero(under)
+        too_few = isinstance(reason, _TooFew) and reason.n_points >= 0.5 * np.count_nonzero(under)
         if refit and joint is None and not too_few:
             # No such circle: no can, unless too few to judge, hidden then, as below.
             return None, "", None
