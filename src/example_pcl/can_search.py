@@ -1556,13 +1556,14 @@ def _lid_judged(free, z_lid, lid, sigma, r_eps, ctx):
         # stripe of side seen beside that can lies off it (held-out 1507 of "cluttered table": 5 mm
         # outside): the circle refitted to both, if its lid's rim still fits it.
         under = (np.abs(dist - r) <= 2 * r_eps) & (z < hidden_below) & facing
-        refit = np.count_nonzero(under) >= c.min_fit_points
+        n_under = np.count_nonzero(under)
+        refit = n_under >= c.min_fit_points
         joint = _rim_with_side(rim, pts[under], lid, sigma, r_eps, ctx) if refit else None
         # Too few on the circle to judge a side by, and most of the points near it under the lid: hidden
         # (fresh 6713 of "cans touching": a can behind a wider one, touching it, its lid whole, 27 of its
         # 44). Too few of those: another surface is seen where the side would be (fresh 7506 of "boxes
         # and prisms": a tall box's face tangent to the circle of its top's "rim", none of its 262).
-        too_few = isinstance(reason, _TooFew) and reason.n_points >= 0.5 * np.count_nonzero(under)
+        too_few = isinstance(reason, _TooFew) and reason.n_points >= 0.5 * n_under
         if refit and joint is None and not too_few:
             # No such circle: no can, unless too few to judge, hidden then, as below.
             return None, "", None

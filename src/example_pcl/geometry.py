@@ -923,13 +923,14 @@ def enclosing_rectangle(xy):
     u = edges / np.linalg.norm(edges, axis=1, keepdims=True)
     v = np.column_stack([-u[:, 1], u[:, 0]])
     along, across = corners @ u.T, corners @ v.T
-    area = np.ptp(along, axis=0) * np.ptp(across, axis=0)
+    low = np.array([along.min(axis=0), across.min(axis=0)])  # (2, edges): per edge's frame
+    high = np.array([along.max(axis=0), across.max(axis=0)])
+    area = np.prod(high - low, axis=0)
     k = int(np.argmin(area))
     if not area[k] > 0:
         return None
-    middle = np.array([along[:, k].max() + along[:, k].min(), across[:, k].max() + across[:, k].min()]) / 2
     axes = np.array([u[k], v[k]])
-    return Rectangle(centre=middle @ axes, axes=axes, half=np.array([np.ptp(along[:, k]), np.ptp(across[:, k])]) / 2,
+    return Rectangle(centre=(high[:, k] + low[:, k]) / 2 @ axes, axes=axes, half=(high[:, k] - low[:, k]) / 2,
                      fill=float(hull.volume / area[k]))
 
 

@@ -132,32 +132,33 @@ def _taller_box(q, z, eps, min_width=0.05, reach=0.005, min_beside=15, taller=0.
     min_width (m) every way (_level_face, eps), the cluster's highest, filling at least
     min_rectangularity of that rectangle (a can's lid fills pi / 4); at least min_beside points lie
     outside it, below the top, and the box rises at least `taller` (m) above all of them."""
-    top = _level_face(q, z, eps, min_width, np.ones(len(z), bool))
+    top = _level_face(q, z, eps, min_width)
+    if not top.any():
+        return None
+    z_top = z[top].mean()
     # Its top is the cluster's: nothing stands higher (whose side, at the top's height, would join it).
-    if not top.any() or z.max() > z[top].mean() + 2 * eps:
+    if z.max() > z_top + 2 * eps:
         return None
     rectangle = g.enclosing_rectangle(q[top])
     if rectangle is None or rectangle.fill < min_rectangularity:
         return None
     box = rectangle.contains(q, reach)
-    beside = ~box & (z < z[top].mean() - eps)
+    beside = ~box & (z < z_top - eps)
     if np.count_nonzero(beside) < min_beside or z.max() - z[~box].max() < taller:
         return None
     return box
 
 
-def _level_face(xy, z, eps, min_width, free, bin_width=0.002, min_points=10):
-    """Which of the `free` points (bool (N,); xy float (N, 2), z (N,), m) lie within eps (m) of the
-    height most of them share (in bin_width bins), when they are at least min_points and span at least
-    min_width (m) every way seen from above (a box's top; the minor axis of their spread): bool (N,)."""
+def _level_face(xy, z, eps, min_width, bin_width=0.002, min_points=10):
+    """Which of the points (xy float (N, 2), z (N,), m) lie within eps (m) of the height most of them
+    share (in bin_width bins), when they are at least min_points and span at least min_width (m) every
+    way seen from above (a box's top; the minor axis of their spread): bool (N,)."""
     face = np.zeros(len(z), bool)
-    rest = np.flatnonzero(free)
-    if len(rest) < min_points:
+    if len(z) < min_points:
         return face
-    zr = z[rest]
-    bins = ((zr - zr.min()) / bin_width).astype(np.int64)
-    level = zr[bins == np.argmax(np.bincount(bins))].mean()
-    on = rest[np.abs(zr - level) <= eps]
+    bins = ((z - z.min()) / bin_width).astype(np.int64)
+    level = z[bins == np.argmax(np.bincount(bins))].mean()
+    on = np.flatnonzero(np.abs(z - level) <= eps)
     if len(on) < min_points:
         return face
     spread = xy[on] - xy[on].mean(axis=0)
