@@ -805,11 +805,17 @@ def _inside_cup(cx, cy, r, z_lo, z_hi, r_eps, ctx):
     held-out seed 808 of "mug and bowl"); else "". Not into the other round objects claimed: a
     circle of no can's radius through a can's front and a box (held-out seed 909 of "box hides
     base") is no object."""
+    band = ctx.search.band_height
     for cup in (claim for claim in ctx.claimed if claim.hollow):
-        depth = r + cup.r - np.hypot(cx - cup.cx, cy - cup.cy)
-        if depth > r_eps and min(z_hi, cup.z_hi) - max(z_lo, cup.z_lo) > 2 * ctx.search.band_height:
-            return (f"reaches {1e3 * depth:.0f} mm into a cup or mug (r {1e3 * cup.r:.0f} mm): two objects do not "
-                    "share space (its handle)")
+        apart = np.hypot(cx - cup.cx, cy - cup.cy)
+        shared = min(z_hi, cup.z_hi) - max(z_lo, cup.z_lo) > 2 * band
+        if not shared and apart >= r:
+            # A cup whose centre is off the circle stands on no can there: its wall goes on down, unseen,
+            # from the lowest point seen, which a can reaching a band higher meets.
+            shared = min(z_hi - cup.z_lo, min(z_hi, cup.z_hi) - z_lo) > band
+        if r + cup.r - apart > r_eps and shared:
+            return (f"reaches {1e3 * (r + cup.r - apart):.0f} mm into a cup or mug (r {1e3 * cup.r:.0f} mm): two "
+                    "objects do not share space (its handle)")
     return ""
 
 

@@ -1303,6 +1303,31 @@ def test_the_lower_part_of_a_claimed_mug_is_no_can_with_any_search_seed():
     assert _false_cans("cluttered table", 6128, range(12)) == []
 
 
+def test_a_mugs_handle_below_where_the_mug_is_seen_is_no_can_with_any_search_seed():
+    """Fresh 7626 of "cluttered table", search seeds 0-5: a mug behind a box, claimed hollow from 60 mm
+    up where its inside showed; its handle, seen beside the box from 20 mm up, and four points of its
+    inner wall made a can of r 31.7 mm, 75 mm high, reaching 15 mm into the mug (every seed). A mug
+    whose centre is off a circle stands on no can there: its wall goes on down below what is seen."""
+    assert _false_cans("cluttered table", 7626, range(6)) == []
+
+
+def test_a_can_beside_a_mug_seen_only_high_up_may_not_reach_into_it():
+    """_inside_cup: a mug (r 33 mm) claimed hollow where it is seen, 60-100 mm up. A circle of r 32 mm
+    50 mm off its centre (15 mm into it) from the table to 75 mm is no can: the mug's centre is off
+    the circle, so it stands on no can there and its wall goes on down. The same circle 55 mm high
+    (a band under the mug's lowest point seen) may be a can the mug overhangs; one under the mug,
+    its centre within the circle, is judged on the heights seen (15 mm shared: may be its support)."""
+    ctx = cs._Context(config=af.AutoConfig(), search=cs.CylinderSearchConfig(), T_sensor_from_plane=np.eye(4),
+                      sensor=np.zeros(3), standing=np.empty((0, 3)), rng=np.random.default_rng(0), found=[],
+                      claimed=[cs._Claim(0.0, 0.0, 0.033, 0.060, 0.100, True)])
+    assert "into a cup or mug" in cs._inside_cup(0.05, 0.0, 0.032, 0.0, 0.075, 0.006, ctx)
+    assert cs._inside_cup(0.05, 0.0, 0.032, 0.0, 0.055, 0.006, ctx) == ""
+    assert cs._inside_cup(0.01, 0.0, 0.032, 0.0, 0.075, 0.006, ctx) == ""
+    assert "into a cup or mug" in cs._inside_cup(0.01, 0.0, 0.032, 0.0, 0.095, 0.006, ctx)
+    ctx.claimed[0] = ctx.claimed[0]._replace(hollow=False)
+    assert cs._inside_cup(0.05, 0.0, 0.032, 0.0, 0.075, 0.006, ctx) == ""
+
+
 def test_a_cups_inner_wall_seen_through_a_small_circle_makes_it_no_can():
     """Fresh 6735 of "cluttered table": a cup (r 35.9 mm) behind a lower tin, its near wall seen over
     0.95 rad and fitted 6 mm small (r 29.9 mm); its far inner wall lay just outside that circle, no
