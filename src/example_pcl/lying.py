@@ -171,7 +171,8 @@ def _level_face(xy, z, eps, min_width, bin_width=0.002, min_points=10):
 
 def fit_lying_cylinders(points, r_eps, min_radius, max_radius, max_gap, directions=36, iterations=15,
                         max_points=300, count=3, subset_radius=0.05, band=0.01, band_fraction=0.2, min_band_points=3,
-                        max_band_gap=1, sensor=None, min_own=0.6, occluders=None, projector=None):
+                        max_band_gap=1, sensor=None, min_own=0.6, occluders=None, projector=None,
+                        without_taller_box=False):
     """Up to `count` distinct horizontal cylinders explaining points (float64 (N, 3), plane frame, m)
     of a lying can and maybe other objects touching it: LyingFits, most inliers first.
 
@@ -191,8 +192,8 @@ def fit_lying_cylinders(points, r_eps, min_radius, max_radius, max_gap, directio
     plane frame, m) the run goes on over bands where the rest of that half is hidden behind them, or
     unlit by the IR projector (`projector`, (3,), plane frame, m; None: not known; _through_hidden).
     At most max_points points (evenly subsampled) are fitted; rms and n_inliers are theirs. The run
-    along the axis is counted on all the points. When no cylinder is left and a box stands taller than
-    what touches it (_taller_box), the circles are drawn once more from the subsets without its points."""
+    along the axis is counted on all the points. without_taller_box: the circles are drawn from the
+    subsets without the points of a box standing taller than what touches it (_taller_box; none: no fits)."""
     every = points
     points, origin, q, z, sq = _centred(points, max_points, sensor)
     if len(points) < 3:
@@ -260,15 +261,15 @@ def fit_lying_cylinders(points, r_eps, min_radius, max_radius, max_gap, directio
         return fits
 
     subsets = _subsets(q, subset_radius, seeds=8)
-    fits = scan(subsets)
-    if not fits:
+    if without_taller_box:
         # A box taller than a lying can touching its side has points in every subset of the can's,
-        # which pull its circles off (fresh 7144 of "lying can touching box"): once more without them.
+        # which pull its circles off (fresh 7144 of "lying can touching box") or wide around both (7710).
         box = _taller_box(q, z, 0.5 * r_eps)
-        if box is not None:
-            subsets = subsets & ~box
-            fits = scan(subsets[np.count_nonzero(subsets, axis=1) >= 3])
-    return sorted(fits, key=lambda f: -f.n_inliers)
+        if box is None:
+            return []
+        subsets = subsets & ~box
+        subsets = subsets[np.count_nonzero(subsets, axis=1) >= 3]
+    return sorted(scan(subsets), key=lambda f: -f.n_inliers)
 
 
 def fit_lying_cylinder(points, r_eps, min_radius, max_radius, max_gap, directions=36, iterations=15, max_points=300):
@@ -647,7 +648,8 @@ def lying_can(points, r_eps, sigma, config, search, sensor=None, occluders=None,
     table, what may hide part of its side; projector: the IR projector ((3,), plane frame, m; None:
     not known): the parts of the side it does not light have no depth (_rest_hidden). The distinct
     cylinders of fit_lying_cylinders are judged in turn on their extent; the first that passes is the
-    can, else the first one's reason is why not."""
+    can. When none does, those drawn without a taller box's points are judged the same way; else the
+    first one's reason is why not."""
     c, s = config, search
     # A can on its side is at most one diameter high: the points above are another object's.
     limit = 2 * c.max_radius + s.lying_gap + 3 * sigma
@@ -655,20 +657,19 @@ def lying_can(points, r_eps, sigma, config, search, sensor=None, occluders=None,
     if np.count_nonzero(low) < c.min_fit_points:
         top = float(np.percentile(points[:, 2], 99))
         return None, f"lying: {100 * top:.1f} cm high, more than a lying can's {200 * c.max_radius:.0f} cm"
-    fits = fit_lying_cylinders(points[low], r_eps, c.min_radius, c.max_radius, s.lying_gap + 3 * sigma,
-                               s.lying_directions, min(c.fit_iterations, 10), s.fit_points, band=s.band_height,
-                               band_fraction=s.band_fraction, min_band_points=s.min_band_points,
-                               max_band_gap=s.max_band_gap, sensor=sensor, occluders=occluders,
-                               projector=projector)
-    if not fits:
-        return None, "lying: no horizontal cylinder fits its points"
     why = ""
-    for k, fit in enumerate(fits):
-        can, reason = judge_lying(points, fit, r_eps, sigma, c, s, sensor, occluders, projector=projector)
-        if can is not None:
-            return _tighter(points, can, fits[k + 1:], r_eps, sigma, c, s, sensor, occluders, projector), ""
-        why = why or reason
-    return None, why
+    for without_taller_box in (False, True):
+        fits = fit_lying_cylinders(points[low], r_eps, c.min_radius, c.max_radius, s.lying_gap + 3 * sigma,
+                                   s.lying_directions, min(c.fit_iterations, 10), s.fit_points, band=s.band_height,
+                                   band_fraction=s.band_fraction, min_band_points=s.min_band_points,
+                                   max_band_gap=s.max_band_gap, sensor=sensor, occluders=occluders,
+                                   projector=projector, without_taller_box=without_taller_box)
+        for k, fit in enumerate(fits):
+            can, reason = judge_lying(points, fit, r_eps, sigma, c, s, sensor, occluders, projector=projector)
+            if can is not None:
+                return _tighter(points, can, fits[k + 1:], r_eps, sigma, c, s, sensor, occluders, projector), ""
+            why = why or reason
+    return None, why or "lying: no horizontal cylinder fits its points"
 
 
 def _tighter(points, can, others, r_eps, sigma, config, search, sensor, occluders, projector=None, ratio=2.0):

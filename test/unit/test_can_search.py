@@ -933,6 +933,16 @@ def test_a_lying_can_along_a_taller_box_is_found_without_the_boxs_points(seed):
     assert_generated_lying_cans_found("lying can touching box", seed)
 
 
+@pytest.mark.parametrize("seed", [7710, 7428])
+def test_a_lying_can_whose_circles_a_taller_box_pulled_wide_is_found_without_the_boxs_points(seed):
+    """Fresh 7710 and 7428 of "lying can touching box" (first runs of 2026-12-05): a lying can seen
+    nearly along its axis, its end against a taller box's face; the circles drawn with the box's
+    points fitted a cylinder that failed judgement (7710: r 67 mm around both, its axis 50 mm up;
+    7428: r 30 mm, 57 mm up), so no second draw was made. Drawn again without the box's points
+    whenever no fit is a can, the can is found."""
+    assert_generated_lying_cans_found("lying can touching box", seed)
+
+
 def test_a_box_is_told_only_when_it_stands_taller_than_something_beside_it():
     """A box 12 cm high (8 x 6 cm) and a lying can (r 3 cm) along its front: the points under the box's
     top are the box's, the can's none. The box alone (nothing beside it), something beside it higher
