@@ -323,7 +323,8 @@ def best_circles(xy, cx, cy, r, eps, count, sensor=None, max_overlap=0.5, z=None
 
 class _Claim(NamedTuple):
     """A round object claimed as no can (plane frame, m): its circle, the heights of the points it
-    took, and whether it is hollow (a cup, a mug: its inside or handle seen)."""
+    took, whether it is hollow (a cup, a mug: its inside or handle seen) and whether it keeps its
+    space (its far inner wall or handle seen where the circle puts them)."""
 
     cx: float
     cy: float
@@ -331,6 +332,7 @@ class _Claim(NamedTuple):
     z_lo: float
     z_hi: float
     hollow: bool
+    keeps_space: bool = False
 
 
 @dataclass
@@ -497,17 +499,19 @@ def verify(free, cx, cy, r, ctx, z0=None, again=True, rim=False, split=True):
     if n_side < c.min_fit_points:
         return None, _TooFew(n_side, c.min_fit_points), None
 
-    def claim(x0=None, y0=None, radius=None, z_from=None, hollow=False, with_lid=False):
+    def claim(x0=None, y0=None, radius=None, z_from=None, hollow=False, keeps_space=False, with_lid=False):
         """The points of a round object that is no can: its disc over the run, from z_from (m) when
         its base is known (a cup on a can leaves the can's lid), so no other hypothesis is tried on it.
-        A hollow one (its inside or handle seen: a cup or mug for sure) keeps its space (_inside_cup).
+        A hollow one (its inside or handle seen: a cup or mug for sure) is no can's top; it keeps its
+        space (_inside_cup) when its far inner wall or handle showed where its circle puts them.
         with_lid: up to its lid too (3 sigma above `top`): the run ends a band under a flat lid, whose points
         would be left to the lying search (_claim_round)."""
         x0, y0, radius = (cx, cy, r) if x0 is None else (x0, y0, radius)
         taken = free.disc(x0, y0, radius + r_eps, z_lo - s.band_height if z_from is None else z_from,
                           max(z_hi + s.band_height, top + 3 * sigma) if with_lid else z_hi + s.band_height)
         if len(taken):
-            ctx.claimed.append(_Claim(x0, y0, radius, float(free.z[taken].min()), float(free.z[taken].max()), hollow))
+            ctx.claimed.append(_Claim(x0, y0, radius, float(free.z[taken].min()), float(free.z[taken].max()), hollow,
+                                      keeps_space))
         return free.idx[taken]
 
     if rim:
@@ -601,10 +605,10 @@ def _judge_side(free, cx, cy, r, r_eps, cutoff, sigma, z_lo, z_hi, top, claim, c
     if fraction < c.min_inlier_fraction:
         # A round side with its inside seen (a cup's far wall) is a hollow object: named and claimed,
         # so the can it may stand on is looked for next.
-        why = _open_top(pts[dist <= r + r_eps], cx, cy, r, r_eps, base, top, ctx)
+        why, wall_seen = _open_top(pts[dist <= r + r_eps], cx, cy, r, r_eps, base, top, ctx)
         if why:
             # Not below its run: the side of a can under a wider cup may lie within r_eps of its circle.
-            return None, why, claim(z_from=max(base, z_lo), hollow=True)
+            return None, why, claim(z_from=max(base, z_lo), hollow=True, keeps_space=wall_seen)
         return None, (f"only {100 * fraction:.0f}% of the side within {1e3 * r_eps:.1f} mm of the circle "
                       f"(min {100 * c.min_inlier_fraction:.0f}%)"), None
     # Over the side's points with another within reach: a stray point or two far round the circle (the
@@ -655,10 +659,11 @@ def _judge_side(free, cx, cy, r, r_eps, cutoff, sigma, z_lo, z_hi, top, claim, c
     if span < 0.5 * seen:
         return None, (f"its side spans {1e3 * span:.0f} mm of height only (min {500 * seen:.0f} mm; a rim under "
                       f"a lid, no wall)"), claim(z_from=lowest)
-    why = (_open_top(pts[dist <= r + r_eps], cx, cy, r, r_eps, base, top, ctx)
-           or _handle(pts, cx, cy, dist, r, r_eps, base_z, top, ctx))
+    why, wall_seen = _open_top(pts[dist <= r + r_eps], cx, cy, r, r_eps, base, top, ctx)
+    if not why:
+        why, wall_seen = _handle(pts, cx, cy, dist, r, r_eps, base_z, top, ctx), True
     if why:
-        return None, why, claim(z_from=lowest, hollow=True)
+        return None, why, claim(z_from=lowest, hollow=True, keeps_space=wall_seen)
     why = _inside_cup(cx, cy, r, base_z, top, r_eps, ctx)
     if why:
         return None, why, None
@@ -800,13 +805,13 @@ def _side_and_rim(pts, side_xy, top, sigma, r_eps, ctx):
 
 def _inside_cup(cx, cy, r, z_lo, z_hi, r_eps, ctx):
     """Why the circle (cx, cy, r) over heights z_lo..z_hi (m, plane frame) is no can: it reaches more
-    than r_eps into a hollow object claimed before (a cup or mug: its inside or handle seen) over
-    more than two bands of its height, where no can could stand (the mug's handle beside it,
-    held-out seed 808 of "mug and bowl"); else "". Not into the other round objects claimed: a
-    circle of no can's radius through a can's front and a box (held-out seed 909 of "box hides
-    base") is no object."""
+    than r_eps into a hollow object claimed before that keeps its space (a cup or mug: its far inner
+    wall or handle seen) over more than two bands of its height, where no can could stand (the mug's
+    handle beside it, held-out seed 808 of "mug and bowl"); else "". Not into the other round
+    objects claimed: a circle of no can's radius through a can's front and a box (held-out seed 909
+    of "box hides base") is no object."""
     band = ctx.search.band_height
-    for cup in (claim for claim in ctx.claimed if claim.hollow):
+    for cup in (claim for claim in ctx.claimed if claim.keeps_space):
         apart = np.hypot(cx - cup.cx, cy - cup.cy)
         shared = min(z_hi, cup.z_hi) - max(z_lo, cup.z_lo) > 2 * band
         if not shared and apart >= r:
@@ -1083,7 +1088,10 @@ def _rest_hidden(side_xy, cx, cy, r, r_eps, z_lo, z_hi, ctx, samples=13, limb=1.
 
 
 def _open_top(points, cx, cy, r, r_eps, base, top, ctx):
-    """Why it is a hollow cylinder open at the top (a cup, mug, bowl or pot), or "".
+    """Why it is a hollow cylinder open at the top (a cup, mug, bowl or pot), or "", and whether its
+    far inner wall told it (bool): only points inside, deep or seen through, may be another object's
+    inside a circle fitted too wide (fresh 7549 of "cluttered table": r 73 mm over a cup's side and a
+    can behind it).
 
     Looked for among every point standing on the table near the axis, not only the cluster's: the
     inside of a cup is a depth step away from its rim, often a cluster of its own."""
@@ -1114,9 +1122,9 @@ def _open_top(points, cx, cy, r, r_eps, base, top, ctx):
     limit = max(s.min_band_points, s.max_open_fraction * near)
     if far >= limit:
         return (f"open top: {far} points on the far inner wall below the rim (a hollow cylinder: cup, mug, "
-                "bowl or pot)")
+                "bowl or pot)"), True
     if deep >= limit:
-        return f"open top: {deep} points inside, below the rim (a cup, mug, bowl or pot)"
+        return f"open top: {deep} points inside, below the rim (a cup, mug, bowl or pot)", False
     # Points a solid can would hide, seen through where it would stand: a cup's inner wall beyond a
     # circle its near wall's stripe pulled small (fresh 6735 of "cluttered table": r 29.9 mm for 35.9,
     # 48 points). Within r_eps of its side and open_depth of its top they may be its own.
@@ -1124,8 +1132,8 @@ def _open_top(points, cx, cy, r, r_eps, base, top, ctx):
     through = int(g.seen_through(st[around], ctx.sensor, cx, cy, r - r_eps, base + r_eps, top - s.open_depth).sum())
     if through >= limit:
         return (f"open top: {through} points seen through where it would stand (a hollow cylinder: cup, mug, bowl "
-                "or pot)")
-    return ""
+                "or pot)"), False
+    return "", False
 
 
 def _handle(points, cx, cy, dist, r, r_eps, base, top, ctx):
@@ -1592,7 +1600,7 @@ def _lid_judged(free, z_lid, lid, sigma, r_eps, ctx):
     # does not (verify's max_radius_error: fresh 6203 of "cluttered table", a prism's top between two cans, its
     # rim over 1.8 rad, 11 samples, r 25.5 mm +- 6.4; the 24 cans seen by their lids alone on "cans touching",
     # "cluttered table" and "box hides base" 0-99, 400-499 and held-out 600-609 to 1900-1909: 0.6-2.1 mm).
-    if (_open_top(pts[dist <= r + r_eps], cx, cy, r, r_eps, 0.0, z_lid, ctx) or _not_flat(lid[:, 2], sigma)
+    if (_open_top(pts[dist <= r + r_eps], cx, cy, r, r_eps, 0.0, z_lid, ctx)[0] or _not_flat(lid[:, 2], sigma)
             or not _rest_hidden(pts[side, :2], cx, cy, r, r_eps, c.min_height + 0.01, hidden_below, ctx)
             or (by_side is None and g.radius_standard_error(far[rim.kept], cx, cy, rim.outline_radius)
                 > s.max_radius_error)):
