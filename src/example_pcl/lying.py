@@ -125,10 +125,12 @@ def _distinct(members, score, count, max_overlap=0.5, scan=64):
     return [order[i] for i in taken]
 
 
-def _taller_box(q, z, eps, min_width=0.05, reach=0.005, min_beside=15, taller=0.004, min_rectangularity=0.9):
+def _taller_box(q, z, eps, at=None, min_width=0.05, reach=0.005, min_beside=15, taller=0.004,
+                min_rectangularity=0.9):
     """Which of a cluster's points (q: (x, y) float (N, 2), z (N,), plane frame, m) belong to a box
     standing taller than what touches it, or None: the points under its top, within `reach` (m) of
-    the top's smallest enclosing rectangle seen from above. Its top: the fullest level face wider than
+    the top's smallest enclosing rectangle seen from above; which of the points `at` ((x, y) float
+    (M, 2), m) when given (a subsample of them). Its top: the fullest level face wider than
     min_width (m) every way (_level_face, eps), the cluster's highest, filling at least
     min_rectangularity of that rectangle (a can's lid fills pi / 4); at least min_beside points lie
     outside it, below the top, and the box rises at least `taller` (m) above all of them."""
@@ -146,7 +148,7 @@ def _taller_box(q, z, eps, min_width=0.05, reach=0.005, min_beside=15, taller=0.
     beside = ~box & (z < z_top - eps)
     if np.count_nonzero(beside) < min_beside or z.max() - z[~box].max() < taller:
         return None
-    return box
+    return box if at is None else rectangle.contains(at, reach)
 
 
 def _level_face(xy, z, eps, min_width, bin_width=0.002, min_points=10):
@@ -264,7 +266,9 @@ def fit_lying_cylinders(points, r_eps, min_radius, max_radius, max_gap, directio
     if without_taller_box:
         # A box taller than a lying can touching its side has points in every subset of the can's,
         # which pull its circles off (fresh 7144 of "lying can touching box") or wide around both (7710).
-        box = _taller_box(q, z, 0.5 * r_eps)
+        # Told on every point: a subsample's sparse top fills less of its rectangle (fresh 7830 of
+        # "lying can touching box": 0.89 on the 59 of 249 points, 0.98 on all 659).
+        box = _taller_box(q_every, z_every, 0.5 * r_eps, at=q)
         if box is None:
             return []
         subsets = subsets & ~box
