@@ -203,6 +203,15 @@ def fit_lying_cylinders(points, r_eps, min_radius, max_radius, max_gap, directio
     # The run along the axis is counted on every point: a stride through the raster leaves some bands
     # nearly empty.
     q_every, z_every = every[:, :2] - origin, every[:, 2]
+    box = None
+    if without_taller_box:
+        # A box taller than a lying can touching its side has points in every subset of the can's,
+        # which pull its circles off (fresh 7144 of "lying can touching box") or wide around both (7710).
+        # Told on every point: a subsample's sparse top fills less of its rectangle (fresh 7830 of
+        # "lying can touching box": 0.89 on the 59 of 249 points, 0.98 on all 659).
+        box = _taller_box(q_every, z_every, 0.5 * r_eps, at=q)
+        if box is None:
+            return []
     theta = np.arange(directions) * np.pi / directions
     lateral = -q[:, 0][None, :] * np.sin(theta)[:, None] + q[:, 1][None, :] * np.cos(theta)[:, None]
 
@@ -263,14 +272,7 @@ def fit_lying_cylinders(points, r_eps, min_radius, max_radius, max_gap, directio
         return fits
 
     subsets = _subsets(q, subset_radius, seeds=8)
-    if without_taller_box:
-        # A box taller than a lying can touching its side has points in every subset of the can's,
-        # which pull its circles off (fresh 7144 of "lying can touching box") or wide around both (7710).
-        # Told on every point: a subsample's sparse top fills less of its rectangle (fresh 7830 of
-        # "lying can touching box": 0.89 on the 59 of 249 points, 0.98 on all 659).
-        box = _taller_box(q_every, z_every, 0.5 * r_eps, at=q)
-        if box is None:
-            return []
+    if box is not None:
         subsets = subsets & ~box
         subsets = subsets[np.count_nonzero(subsets, axis=1) >= 3]
     return sorted(scan(subsets), key=lambda f: -f.n_inliers)
