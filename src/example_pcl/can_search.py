@@ -813,14 +813,17 @@ def _inside_cup(cx, cy, r, z_lo, z_hi, r_eps, ctx):
     band = ctx.search.band_height
     for cup in (claim for claim in ctx.claimed if claim.keeps_space):
         apart = np.hypot(cx - cup.cx, cy - cup.cy)
+        depth = r + cup.r - apart
+        if depth <= r_eps:
+            continue
         shared = min(z_hi, cup.z_hi) - max(z_lo, cup.z_lo) > 2 * band
         if not shared and apart >= r:
             # A cup whose centre is off the circle stands on no can there: its wall goes on down, unseen,
             # from the lowest point seen, which a can reaching a band higher meets.
             shared = min(z_hi - cup.z_lo, min(z_hi, cup.z_hi) - z_lo) > band
-        if r + cup.r - apart > r_eps and shared:
-            return (f"reaches {1e3 * (r + cup.r - apart):.0f} mm into a cup or mug (r {1e3 * cup.r:.0f} mm): two "
-                    "objects do not share space (its handle)")
+        if shared:
+            return (f"reaches {1e3 * depth:.0f} mm into a cup or mug (r {1e3 * cup.r:.0f} mm): two objects do not "
+                    "share space (its handle)")
     return ""
 
 
