@@ -925,7 +925,13 @@ def _robust_refit(xy, cx, cy, r, r_eps, ctx):
     started also from the middle half of the visible arc (away from the contacts at its ends, which
     a start biased toward the neighbour may never leave), keeping the start of least biweight
     loss. cutoff: the residual (m) beyond which a point is no side point (inf when the
-    least-squares circle stands)."""
+    least-squares circle stands).
+
+    A neighbour's points all within a few millimetres of the circle may leave no outliers: the
+    least-squares circle bends through them instead (fresh 7929 of "cluttered table": a can of r 38 mm
+    and 25 points of a cup 5 mm off its circle at one end, fitted r 52 mm, not round). A bent circle
+    is no side's either: the biweight from the middle half of the arc replaces it when that one is
+    round, however far it moved."""
     c, s = ctx.config, ctx.search
     fit = partial(g.fit_circle_robust, xy, r_eps=r_eps, k=s.robust_k, min_scale=s.robust_min_scale,
                   max_iterations=c.fit_iterations, tol=c.fit_tolerance)
@@ -934,8 +940,11 @@ def _robust_refit(xy, cx, cy, r, r_eps, ctx):
     except PerceptionError:
         return cx, cy, r, np.inf
     fx, fy, fr, scale = fits[0]
+    bent = False
     if np.count_nonzero(np.abs(np.hypot(xy[:, 0] - fx, xy[:, 1] - fy) - fr) > s.robust_k * scale) < s.min_outliers:
-        return cx, cy, r, np.inf  # nothing but noise: least squares is the better estimate
+        bent = g.shape_error(xy, cx, cy, r, c.shape_bins) > c.max_shape_error
+        if not bent:
+            return cx, cy, r, np.inf  # nothing but noise: least squares is the better estimate
     on = np.flatnonzero(np.abs(np.hypot(xy[:, 0] - cx, xy[:, 1] - cy) - r) <= r_eps)
     order = g.angular_order(np.arctan2(xy[on, 1] - cy, xy[on, 0] - cx))[0]
     middle = on[order[len(order) // 4: len(order) - len(order) // 4]]
@@ -945,8 +954,14 @@ def _robust_refit(xy, cx, cy, r, r_eps, ctx):
         fits.append(fit((mx, my), mr))
     except PerceptionError:
         pass
-    # A circle more than 2 r_eps from the least-squares one is no correction for a neighbour's points.
-    fits = [f for f in fits if np.hypot(f[0] - cx, f[1] - cy) <= 2 * r_eps]
+    if bent:
+        # The middle half's circle alone, when round on its points within its cut-off.
+        fits = [f for f in fits[1:] if g.shape_error(
+            xy[np.abs(np.hypot(xy[:, 0] - f[0], xy[:, 1] - f[1]) - f[2]) <= s.robust_k * f[3]], *f[:3],
+            c.shape_bins) <= c.max_shape_error]
+    else:
+        # A circle more than 2 r_eps from the least-squares one is no correction for a neighbour's points.
+        fits = [f for f in fits if np.hypot(f[0] - cx, f[1] - cy) <= 2 * r_eps]
     if not fits:
         return cx, cy, r, np.inf
     cutoff = s.robust_k * min(f[3] for f in fits)
