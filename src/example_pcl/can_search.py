@@ -933,9 +933,9 @@ def _robust_refit(xy, cx, cy, r, r_eps, ctx):
 
     A neighbour's points all within a few millimetres of the circle may leave no outliers: the
     least-squares circle bends through them instead (fresh 7929 of "cluttered table": a can of r 38 mm
-    and 25 points of a cup 5 mm off its circle at one end, fitted r 52 mm, not round). A bent circle
-    is no side's either: the biweight from the middle half of the arc replaces it when that one is
-    round, however far it moved."""
+    and a cup's wall curving away from its circle at one end, 5 to 16 mm off it, fitted r 52 mm, not
+    round). A bent circle is no side's either: the biweight from the middle half of the arc replaces
+    it when that one is round, however far it moved."""
     c, s = ctx.config, ctx.search
     fit = partial(g.fit_circle_robust, xy, r_eps=r_eps, k=s.robust_k, min_scale=s.robust_min_scale,
                   max_iterations=c.fit_iterations, tol=c.fit_tolerance)

@@ -745,6 +745,13 @@ def judge_lying(points, fit, r_eps, sigma, config, search, sensor=None, occluder
     if straight < s.max_facet_ratio:
         return None, (f"lying: its side lies closer to a line than to the circle (rms ratio {straight:.2f} < "
                       f"{s.max_facet_ratio:.2f}; a flat face)")
+    # Nor two: a box's top and the strip of its face under the edge (fresh 8146 of "lying can touching
+    # box": r 31 mm about a box 63 mm high, its axis along the box's top, shape error 0.76 mm, 3.7 times
+    # closer to the circle than to one line), as the upright search's test of a box's corner (facet_ratio).
+    facets = g.facet_ratio(section, fit.offset, fit.zc, r)
+    if facets < s.max_facet_ratio:
+        return None, (f"lying: two flat faces: each half of its side lies closer to a line than to the circle "
+                      f"(rms ratio {facets:.2f} < {s.max_facet_ratio:.2f}; a box's edge)")
     arc = g.arc_coverage(section, fit.offset, fit.zc)
     min_arc = c.min_arc if min_arc is None else min_arc
     # A can behind another, touching it, shows only the part of its side above the front one. What is

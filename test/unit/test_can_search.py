@@ -1303,6 +1303,21 @@ def test_a_box_tops_rim_pins_no_narrow_side_with_any_search_seed():
     assert _false_cans("boxes and prisms", 6140, range(12)) == []
 
 
+def test_a_box_across_a_lying_cans_end_is_no_lying_can_with_any_search_seed():
+    """Fresh 8146 of "lying can touching box", search seeds 0-3: a box 63 mm high across the end of a
+    lying can 78 mm high, what the can left of it (its top and the strips of its faces under the top's
+    edges) fitted a lying cylinder of r 31 mm along the top, shape error 0.76 mm, 3.7 times closer to
+    the circle than to one line (each seed: a false can). Each half of that side lies closer to a line
+    than to the circle (0.56): two flat faces, as the upright search's corner. The can is found."""
+    assert _false_cans("lying can touching box", 8146, range(4)) == []
+    spec = so.case_spec("lying can touching box", 8146)
+    scene = sc.generate_scene(spec)
+    to_plane, cans, lying_cans = bench_cans.generated_truth(spec, scene)
+    tally = bench_cans.Tally()
+    bench_cans.score(tally, af.find_cans(scene.xyz).cans, cans, lying_cans, to_plane, 0.015)
+    assert (tally.lying, tally.lying_total) == (1, 1)
+
+
 def test_a_tall_boxs_face_tangent_to_its_tops_rim_is_no_hidden_can_with_any_search_seed():
     """Fresh 7506 of "boxes and prisms", search seeds 0-5: a box 19 cm high, its top seen sparsely (a
     "lid" of r 20 mm passing the rim tests), its front face tangent to that circle: 262 points near the
