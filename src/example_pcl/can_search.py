@@ -658,8 +658,9 @@ def _judge_side(free, cx, cy, r, r_eps, cutoff, sigma, z_lo, z_hi, top, claim, c
     # from the stripe's top to the foot). A stripe up to where a side ends under its lid, its base hidden, is
     # the top of a side hidden below (fresh 8019 of "cluttered table": 12 mm under the lid, a can behind a cup
     # 13 mm lower, whose far wall 10 mm off the circle spoilt the bands below).
-    span = _percentile(z[side], 99) - base
-    under_lid = top - (base + span) <= c.top_margin + 3 * sigma + 0.5 * s.band_height
+    stripe_top = _percentile(z[side], 99)
+    span = stripe_top - base
+    under_lid = top - stripe_top <= c.top_margin + 3 * sigma + 0.5 * s.band_height
     if span < 0.5 * seen and (base_seen or not under_lid):
         return None, (f"its side spans {1e3 * span:.0f} mm of height only (min {500 * seen:.0f} mm; a rim under "
                       f"a lid, no wall)"), claim(z_from=lowest)
@@ -943,13 +944,16 @@ def _robust_refit(xy, cx, cy, r, r_eps, ctx):
         fits = [fit((cx, cy), r)]
     except PerceptionError:
         return cx, cy, r, np.inf
-    fx, fy, fr, scale = fits[0]
+
+    def off(circle):  # each point's distance (m) from a circle (cx, cy, r, ...)
+        return np.abs(np.hypot(xy[:, 0] - circle[0], xy[:, 1] - circle[1]) - circle[2])
+
     bent = False
-    if np.count_nonzero(np.abs(np.hypot(xy[:, 0] - fx, xy[:, 1] - fy) - fr) > s.robust_k * scale) < s.min_outliers:
+    if np.count_nonzero(off(fits[0]) > s.robust_k * fits[0][3]) < s.min_outliers:
         bent = g.shape_error(xy, cx, cy, r, c.shape_bins) > c.max_shape_error
         if not bent:
             return cx, cy, r, np.inf  # nothing but noise: least squares is the better estimate
-    on = np.flatnonzero(np.abs(np.hypot(xy[:, 0] - cx, xy[:, 1] - cy) - r) <= r_eps)
+    on = np.flatnonzero(off((cx, cy, r)) <= r_eps)
     order = g.angular_order(np.arctan2(xy[on, 1] - cy, xy[on, 0] - cx))[0]
     middle = on[order[len(order) // 4: len(order) - len(order) // 4]]
     try:
@@ -960,9 +964,8 @@ def _robust_refit(xy, cx, cy, r, r_eps, ctx):
         pass
     if bent:
         # The middle half's circle alone, when round on its points within its cut-off.
-        fits = [f for f in fits[1:] if g.shape_error(
-            xy[np.abs(np.hypot(xy[:, 0] - f[0], xy[:, 1] - f[1]) - f[2]) <= s.robust_k * f[3]], *f[:3],
-            c.shape_bins) <= c.max_shape_error]
+        fits = [f for f in fits[1:]
+                if g.shape_error(xy[off(f) <= s.robust_k * f[3]], *f[:3], c.shape_bins) <= c.max_shape_error]
     else:
         # A circle more than 2 r_eps from the least-squares one is no correction for a neighbour's points.
         fits = [f for f in fits if np.hypot(f[0] - cx, f[1] - cy) <= 2 * r_eps]
