@@ -102,11 +102,12 @@ def _subsets(xy, radius, seeds):
     return np.array(masks)
 
 
-def _distinct(members, score, count, max_overlap=0.5, scan=64):
-    """Positions of up to `count` of the best-scoring hypotheses (members: bool (H, N), each one's
-    points within r_eps; score (H,): 0 never, nor one of fewer than 3 members), each sharing at most
-    max_overlap of the smaller one's points with one taken before: the same can seen from several
-    subsets counts once."""
+def _distinct(members, score, count, attempt=None, max_attempts=None, max_overlap=0.5, scan=64):
+    """Up to `count` of the best-scoring hypotheses (members: bool (H, N), each one's points within
+    r_eps; score (H,): 0 never, nor one of fewer than 3 members), each sharing at most max_overlap of
+    the smaller one's points with one taken before: the same can seen from several subsets counts
+    once. attempt(h): what a hypothesis gives (None: it failed, and hides none of its duplicates), at
+    most max_attempts times (None: no limit); None: its position. Returns what the ones taken gave."""
     order = [int(h) for h in np.argsort(-score, kind="stable")[:scan] if score[h] > 0]
     if not order:
         return []
@@ -114,15 +115,21 @@ def _distinct(members, score, count, max_overlap=0.5, scan=64):
     size = np.count_nonzero(chosen, axis=1)
     # Each hypothesis taken shares points with every other one: counted once it is taken (at most
     # `count` times), not for every pair (a matrix product, slow on the reference BLAS).
-    taken, shared = [], []
+    taken, shared, gave = [], [], []
+    attempts = 0
     for i in range(len(order)):
-        if len(taken) == count:
+        if len(taken) == count or attempts == max_attempts:
             break
         if size[i] < 3 or any(with_j[i] > max_overlap * min(size[j], size[i]) for j, with_j in zip(taken, shared)):
             continue
+        attempts += 1
+        out = order[i] if attempt is None else attempt(order[i])
+        if out is None:
+            continue
         taken.append(i)
         shared.append(np.count_nonzero(chosen & chosen[i], axis=1))
-    return [order[i] for i in taken]
+        gave.append(out)
+    return gave
 
 
 def _taller_box(q, z, eps, at=None, min_width=0.05, reach=0.005, min_beside=15, taller=0.004,
@@ -248,19 +255,18 @@ def fit_lying_cylinders(points, r_eps, min_radius, max_radius, max_gap, directio
         weight = (1 - (np.sqrt(rho2[held]) - r_ok[held]) ** 2 / r_eps ** 2) ** 2
         score[held] = np.where(members[held], weight, 0.0).sum(axis=1)
 
-        fits = []
-        for h in _distinct(members, score, count):
+        def attempt(h):  # the refined fit of hypothesis h, or None
             k, d = k_ok[h], d_ok[h]
             # First on its subset (a piece of one can), then on the run of bands along the axis it explains.
             fit = _refine(q, z, theta[d], cl[k, d], cz[k, d], r[k, d], r_eps, iterations, subsets[k], max_radius,
                           max_gap, sq)
             # No can's radius, or not on the table: the refits below would not make it one.
             if fit is None or not can_sized(fit):
-                continue
+                return None
             # Only the part of the axis the circle explains: not a neighbour's face beyond its end.
             run = explained(fit)
             if run is None:
-                continue
+                return None
             refit = without_ends(fit, run)
             # A fit on a piece of the can may point a few degrees off its axis, and its circle explains a
             # shorter run along it: once more along the refitted axis (if it can be a can's).
@@ -269,8 +275,12 @@ def fit_lying_cylinders(points, r_eps, min_radius, max_radius, max_gap, directio
                 again = explained(turned)
                 if again is not None and again != run:
                     refit = without_ends(turned, again)
-            fits.append(refit)
-        return fits
+            return refit
+
+        # A hypothesis that fails hides none of its duplicates: another subset's circle on the same
+        # points may reach the can (fresh 8312 of "lying can touching box": a circle drawn over a can's
+        # top and a box's top beside it failed, and hid those of the can's own end).
+        return _distinct(members, score, count, attempt, max_attempts=count)
 
     subsets = _subsets(q, subset_radius, seeds=8)
     q_fit, z_fit = q, z
