@@ -1732,7 +1732,7 @@ def test_a_tapered_round_object_is_rejected_as_tapered_and_a_can_is_not():
                                         ("cans touching", 6713), ("cluttered table", 7201),
                                         ("can touching box", 7330), ("can touching box", 6922),
                                         ("cluttered table", 7549), ("cluttered table", 7929),
-                                        ("cluttered table", 8019)])
+                                        ("cluttered table", 8019), ("cluttered table", 8136)])
 def test_development_misses_are_found_where_they_stand(case, seed):
     """Every can of these generated scenes is found within 3 mm of its axis, on its support (base
     within 1 cm, height within 1.5 cm of the truth), and no other upright can is reported."""
@@ -1845,6 +1845,25 @@ def test_a_lid_is_flat_a_rim_over_an_inner_wall_is_not(sigma):
     wall = max(0.010, 8 * sigma)
     rim_and_wall = np.r_[0.088 + sigma * rng.standard_normal(120), rng.uniform(0.088 - wall, 0.088, 80)]
     assert cs._not_flat(rim_and_wall, sigma)
+
+
+def test_a_lid_holds_its_points_but_not_anothers_top_seen_apart_from_it():
+    """A lid (r 30 mm, samples 3.6 mm apart) holds its points; a ring of points up to 12 mm beyond its
+    rim, joined to it, is a wider top (no can's lid); a row of points 10 mm clear of the lid's circle
+    and r_eps, apart from it, is another object's top (a cup's rim in front): it does not count."""
+    spacing = 0.0036
+    grid = np.mgrid[-0.05:0.05:spacing, -0.05:0.05:spacing].reshape(2, -1).T
+    reach = np.hypot(grid[:, 0], grid[:, 1])
+    lid = np.c_[grid[reach <= 0.030], np.full(np.count_nonzero(reach <= 0.030), 0.1)]
+    assert cs._holds_lid(lid, 0.0, 0.0, 0.030, 0.006, spacing)
+    beyond = (reach > 0.030) & (reach <= 0.042)
+    ring = np.c_[grid[beyond], np.full(np.count_nonzero(beyond), 0.1)]
+    wider = np.r_[lid, ring]
+    assert not cs._holds_lid(wider, 0.0, 0.0, 0.030, 0.006, spacing)
+    # A row of 16 points 16 mm beyond the rim, 5 mm lower: more than 5 % of them all.
+    apart = np.c_[np.linspace(-0.027, 0.027, 16), np.full(16, -0.046), np.full(16, 0.095)]
+    assert len(apart) > 0.05 * (len(lid) + len(apart))
+    assert cs._holds_lid(np.r_[lid, apart], 0.0, 0.0, 0.030, 0.006, spacing)
 
 
 def test_stray_points_do_not_stretch_a_sides_arc():
