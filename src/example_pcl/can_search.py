@@ -121,7 +121,10 @@ class CylinderSearchConfig:
     the side's (geometry.split_ratio) is two round objects, the fronts of two touching cans a wider
     circle is tangent to; inner_split: above this ratio, the half's own circle, when a can's radius and
     more than r_eps smaller, is verified, and its can taken if its rms is lower (a wider circle over a
-    can's front and a neighbour's side beside it).
+    can's front and a neighbour's side beside it). min_band_arc: a lying can's side shows its arc
+    all along it: the median over its band_height-long bands along the axis (those with 2 points
+    or more) of the arc each one's side points span is at least this fraction of the side's arc
+    (lying._band_arc; a round object's rim along a fit's axis spans next to none in each band).
     max_radius_error: a side its lid's rim does not pin, and a lid seen alone its side does not pin,
     fixes its circle's radius to this (the standard error, m: geometry.radius_standard_error), or is
     too narrow (or too noisy) to tell a can by.
@@ -180,6 +183,7 @@ class CylinderSearchConfig:
     taper_sigmas: float = 3.0
     max_facet_ratio: float = 1.0
     max_split_ratio: float = 2.0
+    min_band_arc: float = 0.25
     inner_split: float = 1.3
     max_radius_error: float = 0.006
     lid_arc: float = 2.5

@@ -1284,6 +1284,38 @@ def test_real_scenes_without_cans_have_none(name):
 
 
 @needs_osd
+def test_a_tins_rim_along_a_lying_fits_axis_is_no_lying_can():
+    """learn43 with depth noise of one sigma added (bench_views' draw 2): a round tin's rim, 105 points
+    left beside what the upright search took, with a few points at its ends fitted a horizontal
+    cylinder of r 29.9 mm over 2.13 rad, whose 1 cm bands each spanned 0.23 rad at the median: no
+    lying can. The Pringles lying beside it still is one."""
+    from example_pcl.pcd import read_pcd
+
+    cloud = read_pcd(str(OSD / "learn43.pcd"))
+    rng = np.random.default_rng(2)
+    xyz = cloud.xyz.astype(np.float64)
+    xyz *= 1.0 + af.AutoConfig().noise_coefficient * xyz[..., 2:] * rng.standard_normal(xyz.shape[:2] + (1,))
+    result = af.find_cans(xyz.astype(np.float32), viewpoint=cloud.origin)
+    labels = cloud.points["label"].reshape(-1).astype(int) // 10
+    lying_cans = [c for c in result.cans if c.lying]
+    assert len(lying_cans) == 1, [(c.radius, c.height) for c in lying_cans]
+    assert np.mean(labels[lying_cans[0].indices] == 2) > 0.9
+
+
+def test_a_lying_sides_arc_is_seen_along_it_a_rims_is_not():
+    """lying._band_arc: the points of a half cylinder's side (r 30 mm) span about its half circle in
+    every 1 cm band along it; a rim along its top with a few points down its ends spans next to none
+    in each band, though all of them together span 2 rad."""
+    rng = np.random.default_rng(3)
+    axial, angle = rng.uniform(0, 0.12, 400), rng.uniform(0, np.pi, 400)
+    assert lying._band_arc(axial, angle, 0.01) > 0.8 * np.pi
+    rim_axial = np.r_[rng.uniform(0, 0.12, 80), np.full(6, 0.0), np.full(6, 0.12)]
+    rim_angle = np.r_[np.pi / 2 + rng.normal(0, 0.05, 80), np.linspace(-0.3, 1.5, 6), np.linspace(1.6, 1.7, 6)]
+    assert lying._band_arc(rim_axial, rim_angle, 0.01) < 0.3
+    assert lying._band_arc(np.array([0.0]), np.array([1.0]), 0.01) == 0.0
+
+
+@needs_osd
 def test_an_open_mug_whose_run_ends_under_its_rim_is_no_can():
     """learn33 with a fifth of its pixels dropped (bench_views' draw 1): an open mug's run of bands
     ended 20 mm under its rim, and the far rim above it, 8 mm of height, taken for an object standing
