@@ -106,8 +106,9 @@ def _distinct(members, score, count, attempt=None, max_attempts=None, max_overla
     """Up to `count` of the best-scoring hypotheses (members: bool (H, N), each one's points within
     r_eps; score (H,): 0 never, nor one of fewer than 3 members), each sharing at most max_overlap of
     the smaller one's points with one taken before: the same can seen from several subsets counts
-    once. attempt(h): what a hypothesis gives (None: it failed, and hides none of its duplicates), at
-    most max_attempts times (None: no limit); None: its position. Returns what the ones taken gave."""
+    once. attempt(h): what hypothesis h gives, or None when it fails (then it hides none of its
+    duplicates); tried at most max_attempts times (None: no limit). Returns what the ones taken gave
+    (without attempt: their positions)."""
     order = [int(h) for h in np.argsort(-score, kind="stable")[:scan] if score[h] > 0]
     if not order:
         return []
@@ -779,7 +780,7 @@ def judge_lying(points, fit, r_eps, sigma, config, search, sensor=None, occluder
                                                projector)):
         return None, f"lying: side seen over {arc:.2f} rad < {min_arc:.2f} rad"
     # Its arc is seen all along it, not pieced together from a rim along its top and a few points at
-    # its ends (the real learn43 with its depth noise doubled: a round tin's rim, 105 points, r 29.9 mm
+    # its ends (the real learn43 with depth noise of a sigma added: a round tin's rim, 105 points, r 29.9 mm
     # over 2.13 rad, each 1 cm band spanning 0.23 rad at the median; lying cans of the development
     # and held-out seeds: 0.51 of their arc or more).
     band_arc = _band_arc(axial[side], np.arctan2(z[side] - fit.zc, lateral[side] - fit.offset), s.band_height)
