@@ -221,6 +221,10 @@ def fit_lying_cylinders(points, r_eps, min_radius, max_radius, max_gap, directio
         box = _taller_box(q_every, z_every, 0.5 * r_eps, at=q)
         if box is None:
             return []
+    # The fits' refinements along the run: without the box's points too (its face along the can's side,
+    # within 2 r_eps of its circle on the half facing the sensor, pulled it 3 mm wide and low: fresh 8400
+    # of "lying can touching box").
+    q_fit, z_fit = (q, z) if box is None else (q[~box], z[~box])
     theta = np.arange(directions) * np.pi / directions
     lateral = -q[:, 0][None, :] * np.sin(theta)[:, None] + q[:, 1][None, :] * np.cos(theta)[:, None]
 
@@ -284,14 +288,9 @@ def fit_lying_cylinders(points, r_eps, min_radius, max_radius, max_gap, directio
         return _distinct(members, score, count, attempt, max_attempts=count)
 
     subsets = _subsets(q, subset_radius, seeds=8)
-    q_fit, z_fit = q, z
     if box is not None:
         subsets = subsets & ~box
         subsets = subsets[np.count_nonzero(subsets, axis=1) >= 3]
-        # Refitted along the run without them too: the face of a box along the can's side, within
-        # 2 r_eps of its circle on the half facing the sensor, pulled it 3 mm wide and low
-        # (fresh 8400 of "lying can touching box").
-        q_fit, z_fit = q[~box], z[~box]
     return sorted(scan(subsets), key=lambda f: -f.n_inliers)
 
 
@@ -802,8 +801,9 @@ def _band_arc(axial, angle, band):
     """The median over the `band`-long bands along an axis (axial positions, m) holding 2 points or
     more of the arc (rad) the points' angles about it (rad) span in each; 0 when none does."""
     which = np.floor((axial - axial.min()) / band).astype(np.int64)
-    spans = [g.arc_coverage(np.column_stack([np.cos(angle[which == b]), np.sin(angle[which == b])]), 0.0, 0.0)
-             for b in np.unique(which) if np.count_nonzero(which == b) >= 2]
+    order = np.argsort(which, kind="stable")
+    bands = np.split(angle[order], np.flatnonzero(np.diff(which[order])) + 1)
+    spans = [g.angular_order(a)[1] for a in bands if len(a) >= 2]
     return float(np.median(spans)) if spans else 0.0
 
 
