@@ -1430,6 +1430,18 @@ def test_a_can_beside_a_mug_seen_only_high_up_may_not_reach_into_it():
     assert cs._inside_cup(0.05, 0.0, 0.032, 0.0, 0.075, 0.006, ctx) == ""
 
 
+def test_a_supports_top_is_its_top_layer_not_the_median_with_its_side():
+    """"can on can" 6723: the points at the upper can's base level are the lower can's lid (104.5 mm)
+    and, more of them, its side's below it (down to 85 mm): the support's top is the lid's height, not
+    their median; a flat top alone gives its median."""
+    rng = np.random.default_rng(5)
+    lid = 0.1045 + rng.normal(0, 0.0006, 6)
+    side = rng.uniform(0.085, 0.100, 9)
+    assert np.median(np.concatenate([lid, side])) < 0.101
+    assert abs(cs._top_layer(np.concatenate([lid, side]), 0.0006) - 0.1045) < 0.0005
+    assert cs._top_layer(lid, 0.0006) == pytest.approx(np.median(lid), abs=0.0003)
+
+
 def test_a_cups_inner_wall_seen_through_a_small_circle_makes_it_no_can():
     """Fresh 6735 of "cluttered table": a cup (r 35.9 mm) behind a lower tin, its near wall seen over
     0.95 rad and fitted 6 mm small (r 29.9 mm); its far inner wall lay just outside that circle, no
