@@ -348,11 +348,13 @@ def test_a_cup_on_a_can_seen_from_far_is_not_judged_on_one_circle_with_it():
 
 def test_offset_step_splits_a_run_where_its_bands_move_off_the_circle():
     """Bands 0-9 2.5 mm inside the circle, 10-19 2 mm outside: the step (4.5 mm) splits the run and
-    the part with more points is kept; a side within noise of its circle is not split."""
+    the part nearer the circle is kept, though it has fewer points (a hypothesis on a can under a
+    wider cup, fresh 8712 of "cup on can"); a side within noise of its circle is not split."""
     bands = np.repeat(np.arange(20), [20] * 10 + [30] * 10)
     residual = np.where(bands < 10, -0.0025, 0.002)
     assert cs._offset_step(bands, residual, 0, 19, 0.003) == (10, 19)
     assert cs._offset_step(bands + 5, residual, 5, 24, 0.003) == (15, 24)
+    assert cs._offset_step(bands, np.where(bands < 10, 0.0002, 0.0048), 0, 19, 0.003) == (0, 9)
     assert cs._offset_step(bands, np.where(bands < 10, -0.0005, 0.0005), 0, 19, 0.003) is None
 
 
@@ -1430,6 +1432,23 @@ def test_a_can_beside_a_mug_seen_only_high_up_may_not_reach_into_it():
     assert cs._inside_cup(0.05, 0.0, 0.032, 0.0, 0.075, 0.006, ctx) == ""
 
 
+def test_a_cup_stands_on_a_narrower_can_whose_near_side_lies_within_r_eps_inside_it():
+    """Fresh 8712 of "cup on can": a cup (r 39.8 mm, its lowest side point 107 mm up) on a can 8 mm
+    narrower set 4.3 mm toward the sensor, whose near side under it lies 34-37 mm from the cup's
+    axis, within r_eps (6 mm) inside its circle: the cup stands on it and does not float. Its own side
+    going on below, on its circle, is no support."""
+    rng = np.random.default_rng(3)
+    angle = rng.uniform(np.radians(-150), np.radians(-30), 120)
+    z = rng.uniform(0.078, 0.102, 120)
+    can = np.c_[0.0319 * np.cos(angle), 0.0319 * np.sin(angle) - 0.0043, z]
+    own = np.c_[0.0398 * np.cos(angle), 0.0398 * np.sin(angle), z] + rng.normal(0, 0.001, (120, 3)) * (1, 1, 0)
+    for points, stands in ((can, True), (own, False)):
+        ctx = cs._Context(config=af.AutoConfig(), search=cs.CylinderSearchConfig(), T_sensor_from_plane=np.eye(4),
+                          sensor=np.array([0.0, -0.8, 0.7]), standing=points, rng=rng, found=[])
+        support = cs._support(points, 0.0, 0.0, 0.0398, 0.107, 0.006, 0.001, ctx)
+        assert (support[0] is not None) == stands, support
+
+
 def test_a_supports_top_is_its_top_layer_not_the_median_with_its_side():
     """"can on can" 6723: the points at the upper can's base level are the lower can's lid (104.5 mm)
     and, more of them, its side's below it (down to 85 mm): the support's top is the lid's height, not
@@ -1774,7 +1793,8 @@ def test_a_tapered_round_object_is_rejected_as_tapered_and_a_can_is_not():
                                         ("cans touching", 6713), ("cluttered table", 7201),
                                         ("can touching box", 7330), ("can touching box", 6922),
                                         ("cluttered table", 7549), ("cluttered table", 7929),
-                                        ("cluttered table", 8019), ("cluttered table", 8136)])
+                                        ("cluttered table", 8019), ("cluttered table", 8136),
+                                        ("cup on can", 8641), ("cup on can", 8712)])
 def test_development_misses_are_found_where_they_stand(case, seed):
     """Every can of these generated scenes is found within 3 mm of its axis, on its support (base
     within 1 cm, height within 1.5 cm of the truth), and no other upright can is reported."""
