@@ -1026,7 +1026,7 @@ def _support(points, cx, cy, r, base, r_eps, sigma, ctx):
         or (inside >= s.min_band_points and inside > 0.5 * np.count_nonzero(under_base))
     n_beside = int(np.count_nonzero(beside))
     if n_beside >= s.min_band_points or narrower:
-        base_z = _top_layer(z[level], sigma) if n_beside >= s.min_band_points else base
+        base_z = _top_layer(z[level], base, sigma) if n_beside >= s.min_band_points else base
         below = "object"
         for other in ctx.found:
             top = other.support_height + other.height
@@ -1062,13 +1062,16 @@ def _support(points, cx, cy, r, base, r_eps, sigma, ctx):
                                "under it (floats)")
 
 
-def _top_layer(z, sigma):
-    """The height (m) of a support's top from the heights z (m) of the points at a base's level: the
-    median of those within 3 sigma (2 mm at least) under their 90th percentile. Its side's points
-    lower down would pull the median of all of them down (fresh 6723 of "can on can": a can's lid at
-    104.5 mm, its side's points to 85 mm in the window, median 99.2 mm)."""
+def _top_layer(z, base, sigma):
+    """The height (m) of a support's top from the heights z (m) of the points at the level of a
+    base (m, the lowest side point): the median of those within 3 sigma (2 mm at least) under their
+    90th percentile. The support's side's points lower down would pull the median of all of them
+    down ("can on can" 6723: a can's lid at 104.5 mm, its side's points to 85 mm in the window,
+    median 99.2 mm). A layer above the base is another object's beside the can, no support's top (a
+    prism's slanted face, a cup's rim; fresh 6129 and 8514 of "cluttered table"): the median of all."""
     high = _percentile(z, 90)
-    return _percentile(z[z >= high - max(3 * sigma, 0.002)], 50)
+    top = _percentile(z[z >= high - max(3 * sigma, 0.002)], 50)
+    return top if top <= base else _percentile(z, 50)
 
 
 def _covered_top(cx, cy, r, r_eps, top, sigma, ctx):

@@ -1450,15 +1450,18 @@ def test_a_cup_stands_on_a_narrower_can_whose_near_side_lies_within_r_eps_inside
 
 
 def test_a_supports_top_is_its_top_layer_not_the_median_with_its_side():
-    """"can on can" 6723: the points at the upper can's base level are the lower can's lid (104.5 mm)
-    and, more of them, its side's below it (down to 85 mm): the support's top is the lid's height, not
-    their median; a flat top alone gives its median."""
+    """"can on can" 6723: the points at the upper can's base level (111.6 mm) are the lower can's lid
+    (104.5 mm) and, more of them, its side's below it (down to 85 mm): the support's top is the lid's
+    height, not their median; a flat top alone gives its median; a top layer above the base is no
+    support's (fresh 6129 and 8514 of "cluttered table")."""
     rng = np.random.default_rng(5)
     lid = 0.1045 + rng.normal(0, 0.0006, 6)
     side = rng.uniform(0.085, 0.100, 9)
     assert np.median(np.concatenate([lid, side])) < 0.101
-    assert abs(cs._top_layer(np.concatenate([lid, side]), 0.0006) - 0.1045) < 0.0005
-    assert cs._top_layer(lid, 0.0006) == pytest.approx(np.median(lid), abs=0.0003)
+    assert abs(cs._top_layer(np.concatenate([lid, side]), 0.1116, 0.0006) - 0.1045) < 0.0005
+    assert cs._top_layer(lid, 0.1116, 0.0006) == pytest.approx(np.median(lid), abs=0.0003)
+    # A layer above the base is another object's beside the can: the median of all.
+    assert cs._top_layer(np.concatenate([lid, side]), 0.103, 0.0006) == np.median(np.concatenate([lid, side]))
 
 
 def test_a_lids_side_is_seen_in_the_points_on_its_circles_near_half_under_it():
