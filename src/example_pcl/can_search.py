@@ -526,8 +526,8 @@ def verify(free, cx, cy, r, ctx, z0=None, again=True, rim=False, split=True):
     # A run over two objects on a circle between them (a cup 8 mm wider set 5 mm off the can's axis:
     # fresh 8641 of "cup on can", bands 1.3 mm inside the circle and 2.9 mm outside) is fitted on the
     # part _judge_side will judge, or the fit lands between the two and neither is round.
-    part = _offset_step(bands[near_circle & (z >= z_lo) & (z < z_hi)],
-                        residual[near_circle & (z >= z_lo) & (z < z_hi)], lo, hi, 0.5 * r_eps)
+    in_run = near_circle & (z >= z_lo) & (z < z_hi)
+    part = _offset_step(bands[in_run], residual[in_run], lo, hi, 0.5 * r_eps)
     if part is not None:
         side &= (bands >= part[0]) & (bands <= part[1])
         if np.count_nonzero(side) < c.min_fit_points:
@@ -1017,9 +1017,9 @@ def _support(points, cx, cy, r, base, r_eps, sigma, ctx):
              & (dist <= r + s.support_reach))
     beside = level & (ahead < 0.5 * r)
     # Or something right under it, narrower than it (the can a wider cup stands on); not the can's own
-    # side going on below the run, where an object in front hides most of it. Within r_eps of the circle
-    # too when most of the points under it are (fresh 8712 of "cup on can": a can 8 mm narrower set 4 mm
-    # toward the sensor, its near side 4 mm inside the cup's circle, 34-37 mm from its axis for 39.8).
+    # side going on below the run, where an object in front hides most of it. Only r_eps / 2 inside the
+    # circle too when most of the points under the base are (fresh 8712 of "cup on can": a can 8 mm narrower
+    # set 4 mm toward the sensor, its near side 4 mm inside the cup's circle, 34-37 mm from its axis for 39.8).
     under_base = (dist <= r + r_eps) & (z >= base - 0.03) & (z <= base - 0.005)
     inside = np.count_nonzero(under_base & (dist < r - 0.5 * r_eps))
     narrower = np.count_nonzero(under_base & (dist < r - r_eps)) >= s.min_band_points \
