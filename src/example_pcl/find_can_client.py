@@ -129,21 +129,24 @@ def walkthrough(client, xyz, table_rect=TABLE_RECT, can_rect=CAN_RECT, say=print
     from example_pcl.conversions import cloud_to_xyz
     from example_pcl.select_patch import select_points
 
-    def step(mode):
-        before = client.count("plane_model")
+    def step(mode, posed=False):
+        """(the step's plane_model points, its can_pose when `posed`, else None)."""
+        before, poses = client.count("plane_model"), client.count("can_pose")
         ok, message = client.call(mode)
         say(f"  mode {mode}: {message}")
         if not ok:
             raise PerceptionError(f"mode {mode} failed: {message}")
-        return cloud_to_xyz(client.wait_for("plane_model", after=before), copy=True)
+        model = cloud_to_xyz(client.wait_for("plane_model", after=before), copy=True)
+        # Each topic comes on its own connection: a step's pose may arrive after its model, and
+        # counted from after mode 2's model, mode 2's late pose was taken for mode 3's.
+        return model, client.wait_for("can_pose", after=poses) if posed else None
 
     n = client.select(select_points(xyz, rect=table_rect))
     say(f"  table patch: pixels {list(table_rect)}, {n} points")
-    plane = step(0)
+    plane, _ = step(0)
     step(1)
     n = client.select(select_points(xyz, rect=can_rect))
     say(f"  can patch: pixels {list(can_rect)}, {n} points")
-    step(2)
-    poses = client.count("can_pose")
-    model = step(3)
-    return client.wait_for("can_pose", after=poses), plane, model
+    step(2, posed=True)
+    model, pose = step(3, posed=True)
+    return pose, plane, model
