@@ -1,4 +1,5 @@
-"""Tests of example_pcl.find_can_client's pure part: the walkthrough's patches on the bundled scene."""
+"""Tests of example_pcl.find_can_client's pure part: the walkthrough's patches on the bundled scene,
+and the pose it returns (mode 3's, whatever order the topics arrive in)."""
 import json
 import pathlib
 
