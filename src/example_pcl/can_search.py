@@ -821,7 +821,8 @@ def _side_and_rim(pts, side_xy, top, sigma, r_eps, ctx):
     # The side evenly subsampled to at most 4 points per outline point: the rim weighs in the fit.
     joint = rim.with_side(side_xy[::int(np.ceil(len(side_xy) / (4 * len(rim.outline))))], from_both=True)
     if (joint is None or not c.min_radius <= joint.radius <= c.max_radius or joint.arc() < s.min_hidden_arc
-            or not _holds_lid(lid, joint.cx, joint.cy, joint.radius, r_eps, joint.spacing)):
+            or not _holds_lid(lid, joint.cx, joint.cy, joint.radius, r_eps, joint.spacing,
+                              (c.min_radius, c.max_radius))):
         return None
     return joint.cx, joint.cy, joint.radius
 
@@ -1726,7 +1727,8 @@ def _clear_of_found(rim, lid, r_eps, ctx):
         return rim
     moved = rim.touching((*other.center_plane, other.radius))
     if (moved is None or not c.min_radius <= moved.radius <= c.max_radius
-            or not _holds_lid(lid, moved.cx, moved.cy, moved.radius, r_eps, moved.spacing)):
+            or not _holds_lid(lid, moved.cx, moved.cy, moved.radius, r_eps, moved.spacing,
+                              (c.min_radius, c.max_radius))):
         return rim
     return moved
 
@@ -1772,7 +1774,7 @@ def _lid_rim(rim, lid, sigma, r_eps, ctx, beside=None, shaded=False):
         min_rim_arc = s.lid_arc
     return (c.min_radius <= r <= c.max_radius and rim.fits(sigma, min_rim_arc, pinned)
             and g.facet_ratio(rim.outline[rim.kept], cx, cy, rim.outline_radius) >= s.max_facet_ratio
-            and _holds_lid(lid, cx, cy, r, r_eps, rim.spacing)
+            and _holds_lid(lid, cx, cy, r, r_eps, rim.spacing, (c.min_radius, c.max_radius))
             and not any(not other.lying
                         and np.hypot(*(other.center_plane - (cx, cy))) < rim.outline_radius + other.radius - r_eps
                         for other in ctx.found))
@@ -1787,12 +1789,14 @@ def _top_of_claimed(cx, cy, r, z_lid, r_eps, ctx):
                for o in ctx.claimed)
 
 
-def _holds_lid(lid, cx, cy, r, r_eps, spacing):
+def _holds_lid(lid, cx, cy, r, r_eps, spacing, radii):
     """Whether 95 % of a lid's points (float (N, 3), m) lie within r + r_eps of (cx, cy) (m): a lid
     wider than the circle is no can's. Of those beyond, only the ones joined to the lid count (a
     chain of points each within 2 sample spacings, `spacing` m, of the next): another object's top
     at about its height, seen apart from it, is not its lid (fresh 8136 of "cluttered table": the rim
-    of a cup in front, 5 mm lower, 10 mm clear of the lid's circle; 11 of the lid's 167 points)."""
+    of a cup in front, 5 mm lower, 10 mm clear of the lid's circle; 11 of the lid's 167 points); nor
+    are they when they are another round object's rim beside it (_rim_beside; radii: the range of
+    its radius, m)."""
     inside = np.hypot(lid[:, 0] - cx, lid[:, 1] - cy) <= r + r_eps
     if np.mean(inside) >= 0.95:
         return True
@@ -1801,7 +1805,26 @@ def _holds_lid(lid, cx, cy, r, r_eps, spacing):
     _, label = connected_components(coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n)),
                                     directed=False)
     joined = np.isin(label, label[inside])
-    return np.count_nonzero(inside) >= 0.95 * np.count_nonzero(joined)
+    if np.count_nonzero(inside) >= 0.95 * np.count_nonzero(joined):
+        return True
+    return _rim_beside(lid[joined & ~inside], cx, cy, r, r_eps, spacing, radii)
+
+
+def _rim_beside(beyond, cx, cy, r, r_eps, spacing, radii, min_points=5):
+    """Whether the points beyond a lid's circle (cx, cy, r) (float (M, 3), m) are another round
+    object's rim beside it: a circle of a radius within `radii` (m) fits them within a sample spacing
+    (rms, m: a rim one sample thick, not a wider top's area) and overlaps the lid's by at most r_eps.
+    Fresh 9109 of "cluttered table": a cup as high as the can behind it, 9 mm apart, its far rim one
+    sample spacing from the lid's outermost points (36 of its 246; circle r 36 mm, rms 2.5 mm)."""
+    if len(beyond) < min_points:
+        return False
+    try:
+        ox, oy, other = g.fit_circle_algebraic(beyond)
+    except PerceptionError:
+        return False
+    rms = float(np.sqrt(np.mean((np.hypot(beyond[:, 0] - ox, beyond[:, 1] - oy) - other) ** 2)))
+    return (radii[0] <= other <= radii[1] and rms <= spacing
+            and np.hypot(ox - cx, oy - cy) >= r + other - r_eps)
 
 
 def _rim_with_side(rim, side_xy, lid, sigma, r_eps, ctx, side_counts=False):

@@ -1838,7 +1838,8 @@ def test_a_tapered_round_object_is_rejected_as_tapered_and_a_can_is_not():
                                         ("can touching box", 7330), ("can touching box", 6922),
                                         ("cluttered table", 7549), ("cluttered table", 7929),
                                         ("cluttered table", 8019), ("cluttered table", 8136),
-                                        ("cup on can", 8641), ("cup on can", 8712), ("cluttered table", 8749)])
+                                        ("cup on can", 8641), ("cup on can", 8712), ("cluttered table", 8749),
+                                        ("cluttered table", 9109)])
 def test_development_misses_are_found_where_they_stand(case, seed):
     """Every can of these generated scenes is found within 3 mm of its axis, on its support (base
     within 1 cm, height within 1.5 cm of the truth), and no other upright can is reported."""
@@ -1961,15 +1962,38 @@ def test_a_lid_holds_its_points_but_not_anothers_top_seen_apart_from_it():
     grid = np.mgrid[-0.05:0.05:spacing, -0.05:0.05:spacing].reshape(2, -1).T
     reach = np.hypot(grid[:, 0], grid[:, 1])
     lid = np.c_[grid[reach <= 0.030], np.full(np.count_nonzero(reach <= 0.030), 0.1)]
-    assert cs._holds_lid(lid, 0.0, 0.0, 0.030, 0.006, spacing)
+    assert cs._holds_lid(lid, 0.0, 0.0, 0.030, 0.006, spacing, RADII)
     beyond = (reach > 0.030) & (reach <= 0.042)
     ring = np.c_[grid[beyond], np.full(np.count_nonzero(beyond), 0.1)]
     wider = np.r_[lid, ring]
-    assert not cs._holds_lid(wider, 0.0, 0.0, 0.030, 0.006, spacing)
+    assert not cs._holds_lid(wider, 0.0, 0.0, 0.030, 0.006, spacing, RADII)
     # A row of 16 points 16 mm beyond the rim, 5 mm lower: more than 5 % of them all.
     apart = np.c_[np.linspace(-0.027, 0.027, 16), np.full(16, -0.046), np.full(16, 0.095)]
     assert len(apart) > 0.05 * (len(lid) + len(apart))
-    assert cs._holds_lid(np.r_[lid, apart], 0.0, 0.0, 0.030, 0.006, spacing)
+    assert cs._holds_lid(np.r_[lid, apart], 0.0, 0.0, 0.030, 0.006, spacing, RADII)
+
+
+def test_a_lid_holds_its_points_but_not_a_round_neighbours_rim_joined_to_it():
+    """A lid (r 30 mm, r_eps 5 mm, samples 3.6 mm apart, its points out to its circle and r_eps, as
+    noise spreads them) and, one spacing beyond those, the near part of a cup's rim (r 38 mm, 7 mm of
+    its top seen) as high: joined to the lid, but another round object's rim beside it (fresh 9109
+    of "cluttered table"), so the lid holds. A straight strip there (a box's edge) or a cup's rim
+    around the lid (a can in a cup) is no rim beside it: the lid does not hold."""
+    spacing, r, r_eps = 0.0036, 0.030, 0.005
+    grid = np.mgrid[-0.09:0.09:spacing, -0.09:0.09:spacing].reshape(2, -1).T
+    reach = np.hypot(grid[:, 0], grid[:, 1])
+    lid = np.c_[grid[reach <= r + r_eps], np.full(np.count_nonzero(reach <= r + r_eps), 0.1)]
+
+    def holds(beyond):  # beyond: which grid points out to 7.5 cm are the other object's
+        band = beyond & (reach > r + r_eps) & (reach <= 0.075)
+        other = np.c_[grid[band], np.full(np.count_nonzero(band), 0.1)]
+        assert len(other) > 0.05 * (len(lid) + len(other))
+        return cs._holds_lid(np.r_[lid, other], 0.0, 0.0, r, r_eps, spacing, RADII)
+
+    to_cup = np.hypot(grid[:, 0], grid[:, 1] - 0.074)  # the cup's near edge at 36 mm
+    assert holds((to_cup >= 0.031) & (to_cup <= 0.0385))
+    assert not holds(np.abs(grid[:, 1] - 0.038) <= 0.0025)
+    assert not holds((reach >= 0.037) & (reach <= 0.040))
 
 
 def test_stray_points_do_not_stretch_a_sides_arc():
