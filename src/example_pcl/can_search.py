@@ -1822,8 +1822,7 @@ def _rim_beside(beyond, cx, cy, r, r_eps, spacing, radii, min_points=5):
         ox, oy, other = g.fit_circle_algebraic(beyond)
     except PerceptionError:
         return False
-    rms = float(np.sqrt(np.mean((np.hypot(beyond[:, 0] - ox, beyond[:, 1] - oy) - other) ** 2)))
-    return (radii[0] <= other <= radii[1] and rms <= spacing
+    return (radii[0] <= other <= radii[1] and g.circle_rms(beyond, ox, oy, other) <= spacing
             and np.hypot(ox - cx, oy - cy) >= r + other - r_eps)
 
 
