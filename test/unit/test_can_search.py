@@ -1839,7 +1839,8 @@ def test_a_tapered_round_object_is_rejected_as_tapered_and_a_can_is_not():
                                         ("cluttered table", 7549), ("cluttered table", 7929),
                                         ("cluttered table", 8019), ("cluttered table", 8136),
                                         ("cup on can", 8641), ("cup on can", 8712), ("cluttered table", 8749),
-                                        ("cluttered table", 9109)])
+                                        ("cluttered table", 9109), ("cluttered table", 9210),
+                                        ("cluttered table", 6013)])
 def test_development_misses_are_found_where_they_stand(case, seed):
     """Every can of these generated scenes is found within 3 mm of its axis, on its support (base
     within 1 cm, height within 1.5 cm of the truth), and no other upright can is reported."""
@@ -1994,6 +1995,24 @@ def test_a_lid_holds_its_points_but_not_a_round_neighbours_rim_joined_to_it():
     assert holds((to_cup >= 0.031) & (to_cup <= 0.0385))
     assert not holds(np.abs(grid[:, 1] - 0.038) <= 0.0025)
     assert not holds((reach >= 0.037) & (reach <= 0.040))
+
+
+def test_a_lid_beside_a_top_as_high_apart_from_it_is_a_piece_of_its_own():
+    """A lid (r 33 mm, samples 3.6 mm apart) and a prism's triangular top as high, 1 cm clear of it:
+    two pieces, the larger first, each whole; a lid alone is one piece (none to judge apart), and so
+    is a lid with a piece smaller than min_points beside it (the same lid less a few points)."""
+    spacing = 0.0036
+    grid = np.mgrid[-0.1:0.1:spacing, -0.1:0.1:spacing].reshape(2, -1).T
+    disc = np.hypot(grid[:, 0], grid[:, 1]) <= 0.033
+    # The triangle's near edge 1 cm beyond the lid's far rim, its apex 4.5 cm farther.
+    u = grid[:, 1] - 0.043
+    triangle = (u >= 0) & (u <= 0.045) & (np.abs(grid[:, 0] + 0.02) <= 0.025 * (1 - u / 0.045))
+    lid = np.c_[grid[disc | triangle], np.full(np.count_nonzero(disc | triangle), 0.126)]
+    pieces = cs._lid_pieces(lid, 10)
+    assert [len(p) for p in pieces] == [np.count_nonzero(disc), np.count_nonzero(triangle)]
+    assert np.all(np.hypot(pieces[0][:, 0], pieces[0][:, 1]) <= 0.033)
+    assert cs._lid_pieces(lid, np.count_nonzero(triangle) + 1) == []
+    assert cs._lid_pieces(lid[np.hypot(lid[:, 0], lid[:, 1]) <= 0.033], 10) == []
 
 
 def test_stray_points_do_not_stretch_a_sides_arc():
