@@ -378,7 +378,8 @@ def _explained(q, z, fit, r_eps, sensor, band, fraction, min_points, max_gap, oc
     is seen there (a box at its end, wider or lower than it, or as wide, its face then meeting the
     circle along one stripe and going on beyond it); so does one where as many lie inside as on it in
     its crown (the upper side within half a radius of the axis, seen from above: a lower box's top at
-    its end, as wide as the can, meets its circle on both flanks). With occluders ((M, 3), m, plane
+    its end, as wide as the can, meets its circle on both flanks); a gap whose edge shows an end's disc
+    parts it (_apart_at_seen_end). With occluders ((M, 3), m, plane
     frame; q is measured from `origin`, (x, y)), the run goes on over the bands beyond it whose facing half is
     seen where it is not hidden behind them or unlit by the projector ((3,), plane frame, m; None:
     not known; _through_hidden). The run then loses the bands at one
@@ -406,6 +407,8 @@ def _explained(q, z, fit, r_eps, sensor, band, fraction, min_points, max_gap, oc
                      | (crown_inside >= np.maximum(min_points, crown_on)))
     if run is None:
         return None
+    run = _apart_at_seen_end(run, band_on, band_inside, bands, axial, dl, dz, rho < r - r_eps, a0, band, fraction,
+                             min_points)
     if occluders is not None and sensor is not None:
         may_join = (band_on >= min_points) & (band_inside <= band_on) & (other < min_points)
         run = _through_hidden(run, may_join, bands, on, dl, dz, fit, a0, band, r_eps, sensor, occluders, origin,
@@ -419,6 +422,42 @@ def _explained(q, z, fit, r_eps, sensor, band, fraction, min_points, max_gap, oc
     diagonal = toward & (angle >= np.radians(30)) & (angle <= np.radians(65))
     run = _without_flat_end(bands[near], (rho - r)[near], diagonal[near], run, r_eps)
     return a0 + run[0] * band, a0 + (run[1] + 1) * band
+
+
+def _apart_at_seen_end(run, band_on, band_inside, bands, axial, dl, dz, inside, a0, band, fraction, min_points):
+    """The run (first, last band) cut at a gap within it (bands with fewer points on the circle than
+    band_run grows over) where an end's disc is seen at the gap's edge: min_points or more points
+    inside the circle (`inside`, bool) in the half of the band next to it, spread across the axis
+    more than along it. One object ends there and another lies beyond (fresh 9503 of "cluttered
+    table": a lying can's near end 2 cm from a bowl's far wall, which crosses its circle and made it
+    33 mm too long); the run keeps the side with more points on the circle. bands, axial (m), dl, dz
+    (m, lateral and vertical offsets from the axis): per point; a0, band (m): the bands' origin and
+    length."""
+    first, last = run
+    side_like = band_inside[first:last + 1] <= band_on[first:last + 1]
+    need = max(min_points, fraction * band_on[first:last + 1][side_like].max())
+    good = (band_on >= need) & (band_inside <= band_on)
+    gaps = [b for b in range(first + 1, last) if not good[b]]
+    if not gaps:
+        return run
+
+    def disc_toward(b, low_half):  # whether band b shows a disc in its half on the gap's side
+        start = a0 + b * band
+        mine = inside & (bands == b)
+        mine &= (axial < start + 0.5 * band) if low_half else (axial >= start + 0.5 * band)
+        return (np.count_nonzero(mine) >= min_points
+                and np.std(axial[mine]) < max(np.std(dl[mine]), np.std(dz[mine])))
+
+    pieces, lo = [], first
+    for b in gaps:
+        if good[b - 1] and disc_toward(b - 1, False) or good[b + 1] and disc_toward(b + 1, True):
+            pieces.append((lo, b - 1))
+            lo = b + 1
+    if not pieces:
+        return run
+    pieces.append((lo, last))
+    pieces = [(p, q) for p, q in pieces if q >= p]
+    return max(pieces, key=lambda piece: band_on[piece[0]:piece[1] + 1][good[piece[0]:piece[1] + 1]].sum())
 
 
 def _through_hidden(run, may_join, bands, on, dl, dz, fit, a0, band, r_eps, sensor, occluders, origin, projector=None):
