@@ -379,11 +379,11 @@ def _explained(q, z, fit, r_eps, sensor, band, fraction, min_points, max_gap, oc
     circle along one stripe and going on beyond it); so does one where as many lie inside as on it in
     its crown (the upper side within half a radius of the axis, seen from above: a lower box's top at
     its end, as wide as the can, meets its circle on both flanks); a gap whose edge shows an end's disc
-    parts it (_apart_at_seen_end). With occluders ((M, 3), m, plane
-    frame; q is measured from `origin`, (x, y)), the run goes on over the bands beyond it whose facing half is
-    seen where it is not hidden behind them or unlit by the projector ((3,), plane frame, m; None:
-    not known; _through_hidden). The run then loses the bands at one
-    end where no can's side is seen (_without_flat_end: a box's top as high as the can)."""
+    parts it (_apart_at_seen_end). With occluders ((M, 3), m, plane frame; q is measured from
+    `origin`, (x, y)), the run goes on over the bands beyond it whose facing half is seen where it is
+    not hidden behind them or unlit by the projector ((3,), plane frame, m; None: not known;
+    _through_hidden). The run then loses the bands at one end where no can's side is seen
+    (_without_flat_end: a box's top as high as the can)."""
     t, d, zc, r = fit[:4]
     axial, lateral = _on_axis(q, t)
     dl, dz = lateral - d, z - zc
@@ -450,7 +450,7 @@ def _apart_at_seen_end(run, band_on, band_inside, bands, axial, dl, dz, inside, 
 
     pieces, lo = [], first
     for b in gaps:
-        if good[b - 1] and disc_toward(b - 1, False) or good[b + 1] and disc_toward(b + 1, True):
+        if (good[b - 1] and disc_toward(b - 1, False)) or (good[b + 1] and disc_toward(b + 1, True)):
             pieces.append((lo, b - 1))
             lo = b + 1
     if not pieces:
