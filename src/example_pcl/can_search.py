@@ -1677,15 +1677,12 @@ def _lid_judged(free, z_lid, lid, sigma, r_eps, ctx):
         # (fresh 6713 of "cans touching": a can behind a wider one, touching it, its lid whole, 27 of its
         # 44). Too few of those: another surface is seen where the side would be (fresh 7506 of "boxes
         # and prisms": a tall box's face tangent to the circle of its top's "rim", none of its 262).
-        too_few = isinstance(reason, _TooFew) and reason.n_points >= 0.5 * n_under
+        own_on = reason.n_points if isinstance(reason, _TooFew) else None  # on the rim's own circle
+        too_few = own_on is not None and own_on >= 0.5 * n_under
         if refit and joint is None and not too_few:
             # No such circle: no can, unless too few to judge, hidden then, as below.
             return None, "", None
         if joint is not None:
-            # Its own side seen on it, too little to judge: a stripe of min_band_points or more. None on it
-            # is another surface where the side would be (fresh 9705 of "boxes and prisms": a 4 x 4 cm
-            # box's face tangent to the circle inscribed in its top, 103 points under it, none on it).
-            own_stripe = isinstance(reason, _TooFew) and reason.n_points >= s.min_band_points
             can, reason, claim = _rim_verdict(free, joint.cx, joint.cy, joint.radius, ctx)
             # Fewer than min_fit_points of them on its circle over the run of bands the side shows: too
             # few to judge a side by, hidden as below (fresh 5731 of "cans touching": a can behind a wider
@@ -1693,9 +1690,12 @@ def _lid_judged(free, z_lid, lid, sigma, r_eps, ctx):
             if can is not None or claim is not None:
                 return can, reason, claim
             # A rim seen whole (over lid_arc) fixes its circle: with a stripe of side on it too narrow to
-            # judge by, a refit pulled off it by another object's points under it fails and it is judged
-            # hidden as below (fresh 9402 of "cluttered table": a can 4.5 mm behind a cup whose rim stands
-            # 3 mm above its lid; 11 points on the rim's circle, the refit 6 mm toward the cup, rms 3.17 mm).
+            # judge by (min_band_points or more), a refit pulled off it by another object's points under it
+            # fails and it is judged hidden as below (fresh 9402 of "cluttered table": a can 4.5 mm behind a
+            # cup whose rim stands 3 mm above its lid; 11 points on the rim's circle, the refit 6 mm toward
+            # the cup, rms 3.17 mm). None on it is another surface where the side would be (fresh 9705 of
+            # "boxes and prisms": a 4 x 4 cm box's face tangent to the circle inscribed in its top).
+            own_stripe = own_on is not None and own_on >= s.min_band_points
             if not isinstance(reason, _TooFew) and not (whole and own_stripe):
                 return can, reason, claim
         # Too few of them to judge as a side or to refit the rim with: hidden, as when fewer are seen
