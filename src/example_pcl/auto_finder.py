@@ -368,12 +368,13 @@ def _search_cylinders(pts, T, viewpoint, config):
     points = [_native.extract(in_plane, idx).astype(float) for idx in clusters]
     box = g.image_box(grid[..., 2]) if grid.ndim == 3 else None
     edge = None if box is None else standing[g.on_image_edge(standing_idx, grid.shape[1], box)].astype(float)
-    found, rejections = can_search.search(points, standing, T, sensor_plane, config,
-                                          ray_angle=g.ray_angle(grid, viewpoint), image_edge=edge,
+    ray_angle = g.ray_angle(grid, viewpoint)
+    found, rejections = can_search.search(points, standing, T, sensor_plane, config, ray_angle=ray_angle,
+                                          image_edge=edge,
                                           beyond_image=None if box is None else _beyond_image(grid, T, box))
     projector = can_search.projector_in_plane(T_plane_from_sensor, config.cylinders)
     found = [(k, _with_hidden_ends(can, in_plane, standing_idx, clusters[k], T_plane_from_sensor, sensor_plane,
-                                   projector, config) if can.lying else can) for k, can in found]
+                                   projector, config, ray_angle) if can.lying else can) for k, can in found]
     cans = [dataclasses.replace(can, indices=_grid_indices(clusters[k][can.indices], in_plane.shape[:-1],
                                                             pts.shape[:-1], step)) for k, can in found]
     rejected = [RejectedCluster(centroid=transforms.apply(T, rj.centroid), n_points=rj.n_points, reason=rj.reason,
@@ -396,18 +397,21 @@ def _beyond_image(grid, T_sensor_from_plane, box):
     return beyond
 
 
-def _with_hidden_ends(can, in_plane, standing, cluster, T_plane_from_sensor, sensor_plane, projector, config):
+def _with_hidden_ends(can, in_plane, standing, cluster, T_plane_from_sensor, sensor_plane, projector, config,
+                      ray_angle=0.0):
     """A lying Can with its ends_hidden: which of its ends an object in front hides (lying.hidden_ends),
     among the points standing on the table (standing: flat indices into in_plane, the searched grid in
     the plane frame, m) but its cluster's (cluster: flat indices): an object touching the can's end
     is in its cluster and bounds it there ("lying can touching box"); one standing apart in front of
     the end hides it ("cluttered table" 3531, 3542), or its shadow from the IR projector does (6847;
-    projector: its place in the plane frame, None: not known)."""
+    projector: its place in the plane frame, None: not known); ray_angle (rad): between neighbouring
+    rays of the grid (0: not known)."""
     occluders = in_plane.reshape(-1, 3)[np.setdiff1d(standing, cluster)].astype(float)
     start = transforms.apply(T_plane_from_sensor, can.base_center)
     u = T_plane_from_sensor[:3, :3] @ can.axis
     r_eps = max(config.r_eps, config.r_eps_sigmas * config.depth_sigma(start + 0.5 * can.height * u, sensor_plane))
-    hidden = lying.hidden_ends(start, u, can.height, can.radius, r_eps, sensor_plane, occluders, projector=projector)
+    hidden = lying.hidden_ends(start, u, can.height, can.radius, r_eps, sensor_plane, occluders, projector=projector,
+                               own=in_plane.reshape(-1, 3)[cluster].astype(float), ray_angle=ray_angle)
     return dataclasses.replace(can, ends_hidden=hidden)
 
 

@@ -1923,7 +1923,7 @@ def _lying(points, rest, ctx):
     pts = points[rest]
     sigma = _sigma(ctx, pts.mean(axis=0))
     found, why = lying.lying_cans(pts, max(c.r_eps, c.r_eps_sigmas * sigma), sigma, c, ctx.search, ctx.sensor,
-                                  ctx.standing, ctx.projector)
+                                  ctx.standing, ctx.projector, ctx.ray_angle)
     return [_lying_result(can, rest, ctx) for can in found], why
 
 

@@ -189,7 +189,7 @@ def _level_face(xy, z, eps, min_width, bin_width=0.002, min_points=10):
 def fit_lying_cylinders(points, r_eps, min_radius, max_radius, max_gap, directions=36, iterations=15,
                         max_points=300, count=3, subset_radius=0.05, band=0.01, band_fraction=0.2, min_band_points=3,
                         max_band_gap=1, sensor=None, min_own=0.6, occluders=None, projector=None,
-                        without_taller_box=False, max_turns=3):
+                        without_taller_box=False, max_turns=3, ray_angle=0.0):
     """Up to `count` distinct horizontal cylinders explaining points (float64 (N, 3), plane frame, m)
     of a lying can and maybe other objects touching it: LyingFits, most inliers first.
 
@@ -208,7 +208,8 @@ def fit_lying_cylinders(points, r_eps, min_radius, max_radius, max_gap, directio
     ((x, y, z), plane frame, m) given, only the points on a cylinder's half facing it count
     (_facing), and with occluders (float (M, 3), plane frame, m) the run goes on over bands where the
     rest of that half is hidden behind them, or unlit by the IR projector (`projector`, (3,), plane
-    frame, m; None: not known; _through_hidden). At most max_points points (evenly subsampled) are
+    frame, m; None: not known; _through_hidden; ray_angle, rad: between neighbouring rays of the grid
+    searched, 0: not known). At most max_points points (evenly subsampled) are
     fitted; rms and n_inliers are theirs. The run along the axis is counted on all the points.
     without_taller_box: the circles are drawn from the subsets, and refined along their run, without
     the points of a box standing taller than what touches it (_taller_box; none: no fits)."""
@@ -240,7 +241,7 @@ def fit_lying_cylinders(points, r_eps, min_radius, max_radius, max_gap, directio
 
     def explained(fit):
         return _explained(q_every, z_every, fit, r_eps, sq, band, band_fraction, min_band_points, max_band_gap,
-                          occluders, origin, projector)
+                          occluders, origin, projector, ray_angle)
 
     def without_ends(fit, run):
         return _without_ends(q_fit, z_fit, origin, fit, r_eps, iterations, max_radius, max_gap, sq, run, band)
@@ -369,7 +370,7 @@ def _on_axis(q, theta):
 
 
 def _explained(q, z, fit, r_eps, sensor, band, fraction, min_points, max_gap, occluders=None, origin=(0.0, 0.0),
-               projector=None):
+               projector=None, ray_angle=0.0):
     """The axial extent (lo, hi) (m) of the run of `band`-long bands along the axis of the cylinder fit
     ((theta, offset, zc, r, ...)) that its circle explains (geometry.band_run), or None.
 
@@ -382,8 +383,8 @@ def _explained(q, z, fit, r_eps, sensor, band, fraction, min_points, max_gap, oc
     parts it (_apart_at_seen_end). With occluders ((M, 3), m, plane frame; q is measured from
     `origin`, (x, y)), the run goes on over the bands beyond it whose facing half is seen where it is
     not hidden behind them or unlit by the projector ((3,), plane frame, m; None: not known;
-    _through_hidden). The run then loses the bands at one end where no can's side is seen
-    (_without_flat_end: a box's top as high as the can)."""
+    _through_hidden, ray_angle as there). The run then loses the bands at one end where no can's side
+    is seen (_without_flat_end: a box's top as high as the can)."""
     t, d, zc, r = fit[:4]
     axial, lateral = _on_axis(q, t)
     dl, dz = lateral - d, z - zc
@@ -412,7 +413,7 @@ def _explained(q, z, fit, r_eps, sensor, band, fraction, min_points, max_gap, oc
     if occluders is not None and sensor is not None:
         may_join = (band_on >= min_points) & (band_inside <= band_on) & (other < min_points)
         run = _through_hidden(run, may_join, bands, on, dl, dz, fit, a0, band, r_eps, sensor, occluders, origin,
-                              projector)
+                              projector, ray_angle)
     near = facing & (np.abs(rho - r) <= 3 * r_eps)
     # Up the flank toward the sensor, 30-65 degrees from the top: a box's corner there lies off
     # the circle (a square's around it), a can's side on it.
@@ -460,14 +461,15 @@ def _apart_at_seen_end(run, band_on, band_inside, bands, axial, dl, dz, inside, 
     return max(pieces, key=lambda piece: band_on[piece[0]:piece[1] + 1][good[piece[0]:piece[1] + 1]].sum())
 
 
-def _through_hidden(run, may_join, bands, on, dl, dz, fit, a0, band, r_eps, sensor, occluders, origin, projector=None):
+def _through_hidden(run, may_join, bands, on, dl, dz, fit, a0, band, r_eps, sensor, occluders, origin, projector=None,
+                    ray_angle=0.0):
     """The run (first, last band) grown over the bands beyond its ends that may join it (may_join, per
     band: enough points on the circle, no more inside, nothing else just outside) and whose facing half
     lies, where its points on the circle (`on`, bool, with bands, dl and dz: each point's band and
     lateral and vertical offsets from the axis, m) show none, behind the occluders ((M, 3), m, plane
     frame; the fit's coordinates are measured from `origin`, (x, y)) seen from the sensor: a can lying
     behind a lower object shows only its top there, fewer points than band_run asks ("cluttered
-    table" 1602, a cup in front of one end)."""
+    table" 1602, a cup in front of one end). ray_angle: as _hidden_where_unseen's."""
     first, last = run
     if not (first > 0 and may_join[first - 1]) and not (last + 1 < len(may_join) and may_join[last + 1]):
         return run  # most runs end at an empty band: the occluders are not looked at
@@ -481,7 +483,8 @@ def _through_hidden(run, may_join, bands, on, dl, dz, fit, a0, band, r_eps, sens
         if not (0 <= b < len(may_join) and may_join[b]):
             return False
         mine = on & (bands == b)
-        return _hidden_where_unseen(fit, [a0 + (b + 0.5) * band], np.arctan2(dz[mine], dl[mine]), sensor, occ, lit_from)
+        return _hidden_where_unseen(fit, [a0 + (b + 0.5) * band], np.arctan2(dz[mine], dl[mine]), sensor, occ, lit_from,
+                                    ray_angle)
 
     while hidden(first - 1):
         first -= 1
@@ -490,20 +493,29 @@ def _through_hidden(run, may_join, bands, on, dl, dz, fit, a0, band, r_eps, sens
     return first, last
 
 
-def _hidden_where_unseen(fit, axial, seen, sensor, occluders, projector=None):
+def _hidden_where_unseen(fit, axial, seen, sensor, occluders, projector=None, ray_angle=0.0):
     """Whether the places on the half of the cylinder fit ((theta, offset, zc, r, ...)) facing the
     sensor, at the axial coordinates `axial` (m), that no angle in `seen` (rad, from the lateral axis)
-    comes near (geometry.unseen_angles) all have no depth (geometry.without_depth): behind one of the
-    occluders ((M, 3), m) seen from the sensor, or unlit by the IR projector ((3,), None: not known);
-    sensor, projector, occluders and fit in one frame (the fits' coordinates)."""
+    comes near (geometry.unseen_angles: within half their spacing or, with ray_angle, rad, between
+    neighbouring rays of the grid searched, 0: not known, within the arc between neighbouring samples
+    there, _sample_arc) all have no depth (geometry.without_depth): behind one of the occluders ((M,
+    3), m) seen from the sensor, or unlit by the IR projector ((3,), None: not known); sensor,
+    projector, occluders and fit in one frame (the fits' coordinates)."""
     t, d, zc, r = fit[:4]
     fl, fz = _toward_sensor(t, d, zc, sensor)
-    unseen = g.unseen_angles(seen, np.arctan2(fz, fl))
+    toward = np.arctan2(fz, fl)
+    on_axis = [(a * np.cos(t) - d * np.sin(t), a * np.sin(t) + d * np.cos(t), zc) for a in axial]
+    tolerance = None
+    if ray_angle > 0 and len(seen):
+        # The top of a can lying across the view, seen from above, is sampled sparsely where it turns
+        # away: 19 degrees apart at its far limb (fresh 10001 of "cluttered table", r 38 mm at 0.9 m).
+        distance = float(np.linalg.norm(np.mean(on_axis, axis=0) - np.asarray(sensor, dtype=float)))
+        tolerance = _sample_arc(g.near_half_angles(toward), toward, r, distance, ray_angle)
+    unseen = g.unseen_angles(seen, toward, tolerance=tolerance)
     if len(unseen) == 0:
         return True
     # Outward normals: the lateral axis is (-sin t, cos t, 0), the vertical (0, 0, 1).
     outward = np.column_stack([-np.cos(unseen) * np.sin(t), np.cos(unseen) * np.cos(t), np.sin(unseen)])
-    on_axis = [(a * np.cos(t) - d * np.sin(t), a * np.sin(t) + d * np.cos(t), zc) for a in axial]
     places = np.vstack([r * outward + point for point in on_axis])
     return bool(g.without_depth(places, np.tile(outward, (len(axial), 1)), occluders, sensor, projector).all())
 
@@ -690,7 +702,7 @@ class LyingCan:
     rims: np.ndarray
 
 
-def lying_cans(points, r_eps, sigma, config, search, sensor=None, occluders=None, projector=None):
+def lying_cans(points, r_eps, sigma, config, search, sensor=None, occluders=None, projector=None, ray_angle=0.0):
     """Every lying can among points (float64 (N, 3), plane frame, m), which may hold other objects
     touching them: (list of LyingCan, each one's masks over `points`; why the rest is no lying can).
 
@@ -699,7 +711,7 @@ def lying_cans(points, r_eps, sigma, config, search, sensor=None, occluders=None
     found, why = [], ""
     while np.count_nonzero(free) >= config.min_fit_points and len(found) < search.max_rounds:
         idx = np.flatnonzero(free)
-        can, why = lying_can(points[idx], r_eps, sigma, config, search, sensor, occluders, projector)
+        can, why = lying_can(points[idx], r_eps, sigma, config, search, sensor, occluders, projector, ray_angle)
         if can is None:
             break
         inliers, mine, rims = (np.zeros(len(points), bool) for _ in range(3))
@@ -709,7 +721,7 @@ def lying_cans(points, r_eps, sigma, config, search, sensor=None, occluders=None
     return found, why
 
 
-def lying_can(points, r_eps, sigma, config, search, sensor=None, occluders=None, projector=None):
+def lying_can(points, r_eps, sigma, config, search, sensor=None, occluders=None, projector=None, ray_angle=0.0):
     """A lying can among points (float64 (N, 3), plane frame, m): (LyingCan, "") or (None, why not).
 
     r_eps: inlier distance (m); sigma: depth noise there (m); config: auto_finder.AutoConfig (radius
@@ -719,7 +731,8 @@ def lying_can(points, r_eps, sigma, config, search, sensor=None, occluders=None,
     y, z), plane frame (m), or None: only the points on a cylinder's half facing it are its side
     (_facing); occluders (float (N, 3), plane frame, m, or None): every point standing on the
     table, what may hide part of its side; projector: the IR projector ((3,), plane frame, m; None:
-    not known): the parts of the side it does not light have no depth (_rest_hidden). The distinct
+    not known): the parts of the side it does not light have no depth (_rest_hidden); ray_angle (rad):
+    between neighbouring rays of the grid searched (0: not known; _through_hidden). The distinct
     cylinders of fit_lying_cylinders are judged in turn on their extent; the first that passes is the
     can. When none does, those drawn without a taller box's points are judged the same way; else the
     first one's reason is why not."""
@@ -736,7 +749,7 @@ def lying_can(points, r_eps, sigma, config, search, sensor=None, occluders=None,
                                    s.lying_directions, min(c.fit_iterations, 10), s.fit_points, band=s.band_height,
                                    band_fraction=s.band_fraction, min_band_points=s.min_band_points,
                                    max_band_gap=s.max_band_gap, sensor=sensor, occluders=occluders,
-                                   projector=projector, without_taller_box=without_taller_box)
+                                   projector=projector, without_taller_box=without_taller_box, ray_angle=ray_angle)
         for k, fit in enumerate(fits):
             can, reason = judge_lying(points, fit, r_eps, sigma, c, s, sensor, occluders, projector=projector)
             if can is not None:
@@ -858,17 +871,21 @@ def _band_arc(axial, angle, band):
     return float(np.median(spans)) if spans else 0.0
 
 
-def hidden_ends(start, direction, length, radius, r_eps, sensor, occluders, reach=(0.01, 0.02), projector=None):
+def hidden_ends(start, direction, length, radius, r_eps, sensor, occluders, reach=(0.01, 0.02), projector=None,
+                own=None, ray_angle=0.0):
     """Which ends of a lying can an object in front hides: (origin's end, other end), bools.
 
     start: the centre of one end (3,), direction: horizontal (3,) or (2,), length, radius, r_eps (m);
     sensor (3,), projector (3,: the IR projector; None: not known) and occluders (float (N, 3)),
     every point standing on the table; all in the plane frame. An end is hidden when the places of
     the side's half facing the sensor `reach` (m) beyond it all lie behind occluders other than the
-    can's own points, seen from the sensor, or are unlit by the projector (_hidden_where_unseen,
-    nothing of it seen there): the can may go on there unseen ("cluttered
-    table" 3531, 3542: a tall box in front of one end; fresh 6847: a tall can in front, beside whose
-    silhouette the end lies in its shadow)."""
+    can's own points, seen from the sensor, or are unlit by the projector (_hidden_where_unseen): the
+    can may go on there unseen ("cluttered table" 3531, 3542: a tall box in front of one end; fresh
+    6847: a tall can in front, beside whose silhouette the end lies in its shadow). But for those
+    where its side is seen going on past the end (own: float (K, 3), plane frame, m, its cluster's
+    points; those on its cylinder's facing half, more than r_eps and at most the farthest reach past
+    it; ray_angle as _hidden_where_unseen's): fresh 10024 of "cluttered table", a lying can going on
+    behind an upright can, a strip of its top seen over it, too narrow for its run to grow over."""
     u = np.asarray(direction, dtype=float)[:2]
     fit = LyingFit(direction=u / np.linalg.norm(u), origin=np.asarray(start, dtype=float)[:2], offset=0.0,
                    zc=float(start[2]), radius=float(radius), rms=0.0, n_inliers=0)
@@ -876,8 +893,15 @@ def hidden_ends(start, direction, length, radius, r_eps, sensor, occluders, reac
     axis, seen_from = (fit.theta, 0.0, fit.zc, fit.radius), _from_origin(sensor, fit.origin)
     lit_from = _from_origin(projector, fit.origin)
     origin_end, other_end = ([-d for d in reach], [length + d for d in reach])  # axial coordinates (m)
-    return (_hidden_where_unseen(axis, origin_end, [], seen_from, others, lit_from),
-            _hidden_where_unseen(axis, other_end, [], seen_from, others, lit_from))
+    beyond_origin = beyond_other = np.zeros(0)
+    if own is not None and len(own):
+        axial, lateral, z, rho = fit.coordinates(np.asarray(own, dtype=float).reshape(-1, 3))
+        on = (np.abs(rho - fit.radius) <= r_eps) & _facing(lateral, z - fit.zc, fit.theta, 0.0, fit.zc, seen_from)
+        angle = np.arctan2(z - fit.zc, lateral)
+        beyond_origin = angle[on & (axial < -r_eps) & (axial >= -max(reach))]
+        beyond_other = angle[on & (axial > length + r_eps) & (axial <= length + max(reach))]
+    return (_hidden_where_unseen(axis, origin_end, beyond_origin, seen_from, others, lit_from, ray_angle),
+            _hidden_where_unseen(axis, other_end, beyond_other, seen_from, others, lit_from, ray_angle))
 
 
 def _others(fit, occluders, a_lo, a_hi, r_eps):
@@ -887,6 +911,14 @@ def _others(fit, occluders, a_lo, a_hi, r_eps):
     axial, _, _, rho = fit.coordinates(occluders)
     own = (rho <= fit.radius + r_eps) & (axial >= a_lo - r_eps) & (axial <= a_hi + r_eps)
     return _from_origin(occluders[~own], fit.origin)
+
+
+def _sample_arc(angles, toward, radius, distance, ray_angle):
+    """The angle (rad, (K,)) between neighbouring samples of a grid `ray_angle` (rad) apart on the circle
+    of a lying cylinder (radius, m) `distance` (m) from the sensor, at the angles (rad, (K,)) from its
+    lateral axis up: ray_angle * distance / (radius cos(angle - toward)), toward the direction to the
+    sensor across the axis (the samples' spacing across the cylinder's silhouette is the grid's)."""
+    return ray_angle * distance / (radius * np.maximum(np.cos(np.asarray(angles) - toward), 1e-3))
 
 
 def _rest_hidden(fit, side_lateral, side_z, a_lo, a_hi, r_eps, sensor, occluders, projector=None):
