@@ -927,8 +927,8 @@ def test_an_end_past_which_the_side_goes_on_where_the_rest_is_hidden_is_hidden()
 
 def test_a_lying_sides_samples_thin_out_toward_its_limbs():
     """A lying can (r 30 mm) 0.8 m from the sensor, its near half seen but for 12 degrees at its far
-    limb, nothing in front: with the grid's ray angle known (3.5 mrad), samples lie 19 degrees apart
-    there and that part counts as seen (fresh 10001 of "cluttered table"); without, it is a part
+    limb, nothing in front: with the grid's ray angle known (3.5 mrad), samples lie 20 degrees apart
+    there (5.3 facing the sensor) and that part counts as seen (fresh 10001 of "cluttered table"); without, it is a part
     unseen, not hidden."""
     r = 0.03
     sensor = np.array([0.06, -0.6, 0.5])
@@ -2015,7 +2015,7 @@ def test_a_sparse_lid_is_judged_on_its_outline_on_the_hull():
 def test_a_box_tops_corner_is_not_refitted_on_its_hull():
     """Fresh 10039 of "cluttered table", search seeds 0-3: a 68 x 53 mm box's top 1 m below the sensor,
     the rest of the box hidden behind a taller can and box. Its outline's far corner fits no circle (rms
-    4.4 mm, both halves straighter than it: facet ratio 0.42), but the 10 samples on the hull of its
+    4.4 mm, both halves over twice as near lines: facet ratio 0.42), but the 10 samples on the hull of its
     points fit one (r 37 mm, facet ratio 1.22): a can seen by its lid alone on every seed. A corner is
     refitted on no subset of its outline."""
     assert _false_cans("cluttered table", 10039, range(4)) == []
