@@ -405,13 +405,14 @@ def _with_hidden_ends(can, in_plane, standing, cluster, T_plane_from_sensor, sen
     is in its cluster and bounds it there ("lying can touching box"); one standing apart in front of
     the end hides it ("cluttered table" 3531, 3542), or its shadow from the IR projector does (6847;
     projector: its place in the plane frame, None: not known); ray_angle (rad): between neighbouring
-    rays of the grid (0: not known)."""
-    occluders = in_plane.reshape(-1, 3)[np.setdiff1d(standing, cluster)].astype(float)
+    rays of the grid (0: not known). The cluster's points show where the can's side goes on past an end."""
+    flat = in_plane.reshape(-1, 3)
+    occluders = flat[np.setdiff1d(standing, cluster)].astype(float)
     start = transforms.apply(T_plane_from_sensor, can.base_center)
     u = T_plane_from_sensor[:3, :3] @ can.axis
     r_eps = max(config.r_eps, config.r_eps_sigmas * config.depth_sigma(start + 0.5 * can.height * u, sensor_plane))
     hidden = lying.hidden_ends(start, u, can.height, can.radius, r_eps, sensor_plane, occluders, projector=projector,
-                               own=in_plane.reshape(-1, 3)[cluster].astype(float), ray_angle=ray_angle)
+                               own=flat[cluster].astype(float), ray_angle=ray_angle)
     return dataclasses.replace(can, ends_hidden=hidden)
 
 

@@ -897,9 +897,9 @@ def hidden_ends(start, direction, length, radius, r_eps, sensor, occluders, reac
     if own is not None and len(own):
         axial, lateral, z, rho = fit.coordinates(np.asarray(own, dtype=float).reshape(-1, 3))
         on = (np.abs(rho - fit.radius) <= r_eps) & _facing(lateral, z - fit.zc, fit.theta, 0.0, fit.zc, seen_from)
-        angle = np.arctan2(z - fit.zc, lateral)
-        beyond_origin = angle[on & (axial < -r_eps) & (axial >= -max(reach))]
-        beyond_other = angle[on & (axial > length + r_eps) & (axial <= length + max(reach))]
+        angle, farthest = np.arctan2(z - fit.zc, lateral), max(reach)
+        beyond_origin = angle[on & (axial < -r_eps) & (axial >= -farthest)]
+        beyond_other = angle[on & (axial > length + r_eps) & (axial <= length + farthest)]
     return (_hidden_where_unseen(axis, origin_end, beyond_origin, seen_from, others, lit_from, ray_angle),
             _hidden_where_unseen(axis, other_end, beyond_other, seen_from, others, lit_from, ray_angle))
 
