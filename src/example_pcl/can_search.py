@@ -116,15 +116,17 @@ class CylinderSearchConfig:
     max_facet_ratio: a side seen over at least min_arc whose two halves both lie closer to a line
     than to the circle (rms, below this ratio: geometry.facet_ratio) is two flat faces, a box's
     corner the circle touches, not a can; a lying can's side whose whole arc does
-    (geometry.line_ratio) is one flat face. max_split_ratio: a side either half of which (each of
-    at least min_fit_points points) lies this many times closer (rms) to a circle of its own than to
-    the side's (geometry.split_ratio) is two round objects, the fronts of two touching cans a wider
-    circle is tangent to; inner_split: above this ratio, the half's own circle, when a can's radius and
-    more than r_eps smaller, is verified, and its can taken if its rms is lower (a wider circle over a
-    can's front and a neighbour's side beside it). min_band_arc: a lying can's side shows its arc
-    all along it: the median over its band_height-long bands along the axis (those with 2 points
-    or more) of the arc each one's side points span is at least this fraction of the side's arc
-    (lying._band_arc; a round object's rim along a fit's axis spans next to none in each band).
+    (geometry.line_ratio) is one flat face. flat_ratio: below this ratio the points are flat for
+    sure even where noise may hide a can's curvature (a lid's sparse outline, _hull_rim).
+    max_split_ratio: a side either half of which (each of at least min_fit_points points) lies this
+    many times closer (rms) to a circle of its own than to the side's (geometry.split_ratio) is two
+    round objects, the fronts of two touching cans a wider circle is tangent to; inner_split: above
+    this ratio, the half's own circle, when a can's radius and more than r_eps smaller, is verified,
+    and its can taken if its rms is lower (a wider circle over a can's front and a neighbour's side
+    beside it). min_band_arc: a lying can's side shows its arc all along it: the median over its
+    band_height-long bands along the axis (those with 2 points or more) of the arc each one's side
+    points span is at least this fraction of the side's arc (lying._band_arc; a round object's rim
+    along a fit's axis spans next to none in each band).
     max_radius_error: a side its lid's rim does not pin, and a lid seen alone its side does not pin,
     fixes its circle's radius to this (the standard error, m: geometry.radius_standard_error), or is
     too narrow (or too noisy) to tell a can by.
@@ -182,6 +184,7 @@ class CylinderSearchConfig:
     max_taper: float = 0.07
     taper_sigmas: float = 3.0
     max_facet_ratio: float = 1.0
+    flat_ratio: float = 0.5
     max_split_ratio: float = 2.0
     min_band_arc: float = 0.25
     inner_split: float = 1.3
@@ -1505,7 +1508,7 @@ def _lid_only(free, ctx):
     to lid_levels, not next to one tried) when that is no can's. The circle
     of its rim (geometry.rim_circle, from its outline on the half away from the sensor): a can's
     radius, round (facet_ratio), rms within max(2 mm, 2 sigma), over at least lid_arc (or less, pinned
-    by the stripe of side under it: _rim_pinned_by_side; else over min_arc with something higher in
+    by the stripe of side under it: _side_stripe; else over min_arc with something higher in
     front: _lid_rim's shaded), holding 95 % of the lid's points; no can found there (overlapping one
     by more than r_eps). Then its side: seen mostly (or over min_fit_points) lower than
     min_can_height under the lid, over at least min_fit_points, judged on the rim's circle as the
@@ -1632,7 +1635,9 @@ def _lid_judged(free, z_lid, lid, sigma, r_eps, ctx):
         # A lid the can in front cuts short shows its rim over less than lid_arc: pinned by the stripe
         # of side under it ("cans touching" 2408, development 73 of "cluttered table"), or, with no
         # such stripe, judged as it is if something in front stands higher (_lid_rim's shaded).
-        pinned = by_side = _rim_pinned_by_side(rim, pts, z_lid, lid, sigma, r_eps, ctx)
+        stripe = _side_stripe(rim, pts, z_lid, r_eps, ctx)
+        pinned = by_side = (None if stripe is None
+                            else _rim_with_side(rim, stripe[:, :2], lid, sigma, r_eps, ctx, side_counts=True))
         if pinned is None and not _lid_rim(rim, lid, sigma, r_eps, ctx, shaded=True):
             # A lid seen sparsely (far, a few points per sector of the outline) has outline samples
             # well inside its rim; judged on the rest too, those on the hull of its points (fresh 5134
@@ -1750,17 +1755,17 @@ def _rim_verdict(free, cx, cy, r, ctx):
     return can, reason, claim if hollow else None
 
 
-def _hull_rim(rim, lid, sigma, r_eps, ctx, corner=0.5):
+def _hull_rim(rim, lid, sigma, r_eps, ctx):
     """A lid's rim (geometry.RimCircle) fitted to its outline samples within half a sample spacing
     of the convex hull of its points (lid: float (N, 3), plane frame, m; geometry.on_hull), when
     that leaves out some, keeps at least shape_bins and passes _lid_rim (shaded); else None. An
-    outline both halves of which lie `corner` times as far (rms) from a line as from its circle or
+    outline both halves of which lie flat_ratio times as far (rms) from a line as from its circle or
     less (geometry.facet_ratio) is a box's corner, refitted on no subset of it (fresh 10039 of
     "cluttered table": a 68 x 53 mm box's top behind a taller can, 0.42, the 10 samples on the hull
     1.22: a can of r 37 mm). A round lid's sparse, noisy outline comes near 1 (0.97 on fresh 9530 and
     9640 of "cans touching", cans found by the samples on their hull)."""
     kept = rim.outline[rim.kept]
-    if g.facet_ratio(kept, rim.cx, rim.cy, rim.outline_radius) < corner:
+    if g.facet_ratio(kept, rim.cx, rim.cy, rim.outline_radius) < ctx.search.flat_ratio:
         return None
     keep = g.on_hull(lid, rim.outline, 0.5 * rim.spacing)
     if keep.all() or np.count_nonzero(keep) < ctx.config.shape_bins:
@@ -1787,20 +1792,20 @@ def _clear_of_found(rim, lid, r_eps, ctx):
     return moved
 
 
-def _rim_pinned_by_side(rim, pts, z_lid, lid, sigma, r_eps, ctx):
-    """A lid's rim (geometry.RimCircle) refitted with the stripe of side under it and judged with it
-    (_rim_with_side, the side counting toward its arc), or None: the side's points among pts (float
-    (N, 3), plane frame, m) within 2 r_eps of the rim's circle on its half facing the sensor, more than
-    a band under the lid at z_lid (m), at least shape_bins of them, over less than min_arc (a side
-    seen wider is the rounds' to fit and judge: a low box's faces pinned its top's rim, development 83
-    of "cluttered table")."""
+def _side_stripe(rim, pts, z_lid, r_eps, ctx):
+    """The stripe of side under a lid's rim (geometry.RimCircle) that may pin its circle
+    (_rim_with_side, the side counting toward its arc): pts' points (float (N, 3), plane frame, m)
+    within 2 r_eps of the rim's circle on its half facing the sensor, more than a band under the lid
+    at z_lid (m), float (M, 3); None when fewer than shape_bins, or over min_arc (a side seen wider is
+    the rounds' to fit and judge: a low box's faces pinned its top's rim, development 83 of "cluttered
+    table")."""
     c, s = ctx.config, ctx.search
     dist = np.hypot(pts[:, 0] - rim.cx, pts[:, 1] - rim.cy)
     under = ((np.abs(dist - rim.radius) <= 2 * r_eps) & (pts[:, 2] < z_lid - s.band_height)
              & _facing(pts[:, 0], pts[:, 1], rim.cx, rim.cy, rim.radius, ctx))
     if np.count_nonzero(under) < c.shape_bins or g.arc_coverage(pts[under, :2], rim.cx, rim.cy) >= c.min_arc:
         return None
-    return _rim_with_side(rim, pts[under, :2], lid, sigma, r_eps, ctx, side_counts=True)
+    return pts[under]
 
 
 def _lid_rim(rim, lid, sigma, r_eps, ctx, beside=None, shaded=False):
