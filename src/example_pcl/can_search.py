@@ -117,16 +117,16 @@ class CylinderSearchConfig:
     than to the circle (rms, below this ratio: geometry.facet_ratio) is two flat faces, a box's
     corner the circle touches, not a can; a lying can's side whose whole arc does
     (geometry.line_ratio) is one flat face. flat_ratio: below this ratio the points are flat for
-    sure even where noise may hide a can's curvature (a lid's sparse outline, _hull_rim).
-    max_split_ratio: a side either half of which (each of at least min_fit_points points) lies this
-    many times closer (rms) to a circle of its own than to the side's (geometry.split_ratio) is two
-    round objects, the fronts of two touching cans a wider circle is tangent to; inner_split: above
-    this ratio, the half's own circle, when a can's radius and more than r_eps smaller, is verified,
-    and its can taken if its rms is lower (a wider circle over a can's front and a neighbour's side
-    beside it). min_band_arc: a lying can's side shows its arc all along it: the median over its
-    band_height-long bands along the axis (those with 2 points or more) of the arc each one's side
-    points span is at least this fraction of the side's arc (lying._band_arc; a round object's rim
-    along a fit's axis spans next to none in each band).
+    sure even where noise may hide a can's curvature (a lid's sparse outline, _hull_rim; the stripe
+    of side under a lid's rim, _lid_judged). max_split_ratio: a side either half of which (each of
+    at least min_fit_points points) lies this many times closer (rms) to a circle of its own than to
+    the side's (geometry.split_ratio) is two round objects, the fronts of two touching cans a wider
+    circle is tangent to; inner_split: above this ratio, the half's own circle, when a can's radius
+    and more than r_eps smaller, is verified, and its can taken if its rms is lower (a wider circle
+    over a can's front and a neighbour's side beside it). min_band_arc: a lying can's side shows its
+    arc all along it: the median over its band_height-long bands along the axis (those with 2 points
+    or more) of the arc each one's side points span is at least this fraction of the side's arc
+    (lying._band_arc; a round object's rim along a fit's axis spans next to none in each band).
     max_radius_error: a side its lid's rim does not pin, and a lid seen alone its side does not pin,
     fixes its circle's radius to this (the standard error, m: geometry.radius_standard_error), or is
     too narrow (or too noisy) to tell a can by.
@@ -1503,19 +1503,19 @@ def _lid_only(free, ctx):
     free: the cluster's points no can took (_Free).
 
     The lid: the points within max(5 mm, 3 sigma) of the height of the fullest band at least
-    min_can_height up, without those under a point more than a band higher (a wall's), or each of its
-    pieces apart from the others (_lid_pieces) when it is no can's whole; the next fullest bands (up
-    to lid_levels, not next to one tried) when that is no can's. The circle
-    of its rim (geometry.rim_circle, from its outline on the half away from the sensor): a can's
-    radius, round (facet_ratio), rms within max(2 mm, 2 sigma), over at least lid_arc (or less, pinned
-    by the stripe of side under it: _side_stripe; else over min_arc with something higher in
-    front: _lid_rim's shaded), holding 95 % of the lid's points; no can found there (overlapping one
-    by more than r_eps). Then its side: seen mostly (or over min_fit_points) lower than
-    min_can_height under the lid, over at least min_fit_points, judged on the rim's circle as the
-    rounds judge one (verify, rim=True; fewer than min_fit_points that low are too few to judge); else
-    hidden: the points near the circle on its near half within min_can_height under the lid, and
-    every part of that half that shows none of them behind something nearer the sensor below that
-    (_rest_hidden), and no open top."""
+    min_can_height up, without those under a point more than a band higher (a wall's), or each of
+    its pieces apart from the others (_lid_pieces) when it is no can's whole; the next fullest bands
+    (up to lid_levels, not next to one tried) when that is no can's. The circle of its rim
+    (geometry.rim_circle, from its outline on the half away from the sensor): a can's radius, round
+    (facet_ratio), rms within max(2 mm, 2 sigma), over at least lid_arc (or less, pinned by the
+    stripe of side under it, _side_stripe, unless that lies flat: a box's face, flat_ratio; else
+    over min_arc with something higher in front: _lid_rim's shaded), holding 95 % of the lid's
+    points; no can found there (overlapping one by more than r_eps). Then its side: seen mostly (or
+    over min_fit_points) lower than min_can_height under the lid, over at least min_fit_points,
+    judged on the rim's circle as the rounds judge one (verify, rim=True; fewer than min_fit_points
+    that low are too few to judge); else hidden: the points near the circle on its near half within
+    min_can_height under the lid, and every part of that half that shows none of them behind
+    something nearer the sensor below that (_rest_hidden), and no open top."""
     c, s = ctx.config, ctx.search
     pts, z = free.points, free.z
     high = z >= c.min_can_height
@@ -1638,6 +1638,13 @@ def _lid_judged(free, z_lid, lid, sigma, r_eps, ctx):
         stripe = _side_stripe(rim, pts, z_lid, r_eps, ctx)
         pinned = by_side = (None if stripe is None
                             else _rim_with_side(rim, stripe[:, :2], lid, sigma, r_eps, ctx, side_counts=True))
+        if pinned is not None and g.line_ratio(stripe, pinned.cx, pinned.cy, pinned.radius) < s.flat_ratio:
+            # A stripe lying nearer a line than its circle by more than 1 / flat_ratio (rms) is a box's
+            # face under its top: no lid at this height (fresh 10528 of "cluttered table", a 69 x 44 mm
+            # box's top cut short by a taller can's shadow, 0.42, and development 312, a prism's, 0.38:
+            # each a can of r 23 mm; the cans pinned on "cans touching" and "cluttered table" 60-399:
+            # 0.62-1.97).
+            return None, "", None
         if pinned is None and not _lid_rim(rim, lid, sigma, r_eps, ctx, shaded=True):
             # A lid seen sparsely (far, a few points per sector of the outline) has outline samples
             # well inside its rim; judged on the rest too, those on the hull of its points (fresh 5134

@@ -2021,6 +2021,16 @@ def test_a_box_tops_corner_is_not_refitted_on_its_hull():
     assert _false_cans("cluttered table", 10039, range(4)) == []
 
 
+@pytest.mark.parametrize("case, seed", [("cluttered table", 10528), ("cluttered table", 312)])
+def test_a_box_face_under_its_top_pins_no_lid(case, seed):
+    """Fresh 10528 of "cluttered table" (a 69 x 44 mm box's top cut short by a taller can's shadow) and
+    development 312 (a prism's top behind a taller can), search seeds 0-3: the stripe under the top's
+    edge is the box's face, in line with it, twice as near a line as the circle refitted to both (0.42,
+    0.38): a can of r 23 mm seen by its lid, pinned by its side. A flat face pins no lid, nor lets a
+    shorter rim pass."""
+    assert _false_cans(case, seed, range(4)) == []
+
+
 @pytest.mark.parametrize("seed", [9530, 9640])
 def test_a_round_lids_sparse_outline_is_no_corner(seed):
     """Fresh 9530 and 9640 of "cans touching": a can behind a wider one 1.1-1.3 m away, seen by its lid
