@@ -1766,13 +1766,16 @@ def _hull_rim(rim, lid, sigma, r_eps, ctx):
     """A lid's rim (geometry.RimCircle) fitted to its outline samples within half a sample spacing
     of the convex hull of its points (lid: float (N, 3), plane frame, m; geometry.on_hull), when
     that leaves out some, keeps at least shape_bins and passes _lid_rim (shaded); else None. An
-    outline both halves of which lie flat_ratio times as far (rms) from a line as from its circle or
-    less (geometry.facet_ratio) is a box's corner, refitted on no subset of it (fresh 10039 of
-    "cluttered table": a 68 x 53 mm box's top behind a taller can, 0.42, the 10 samples on the hull
-    1.22: a can of r 37 mm). A round lid's sparse, noisy outline comes near 1 (0.97 on fresh 9530 and
-    9640 of "cans touching", cans found by the samples on their hull)."""
+    outline a half of which lies flat_ratio times as far (rms) from a line as from its circle or less
+    (geometry.half_line_ratios) is a box's edge or corner, refitted on no subset of it (fresh 10039
+    of "cluttered table": a 68 x 53 mm box's top behind a taller can, both halves 0.36-0.42, the 10
+    samples on the hull 1.22: a can of r 37 mm; fresh 10849: a 100 x 46 mm box's top behind a can,
+    its edge along its side face 0.30, a can of r 27 mm). A round lid's sparse, noisy outline comes
+    near 1 (0.92-0.97 on fresh 9530 and 9640 of "cans touching" and 5134 of "cluttered table", cans
+    found by the samples on their hull)."""
     kept = rim.outline[rim.kept]
-    if g.facet_ratio(kept, rim.cx, rim.cy, rim.outline_radius) < ctx.search.flat_ratio:
+    halves = g.half_line_ratios(kept, rim.cx, rim.cy, rim.outline_radius)
+    if any(ratio < ctx.search.flat_ratio for ratio in halves):
         return None
     keep = g.on_hull(lid, rim.outline, 0.5 * rim.spacing)
     if keep.all() or np.count_nonzero(keep) < ctx.config.shape_bins:

@@ -878,18 +878,19 @@ def _halves(xy, cx, cy):
     return xy[order][along < 0.5 * span], xy[order][along >= 0.5 * span]
 
 
+def half_line_ratios(xy, cx, cy, radius):
+    """line_ratio of each half of an arc of points (float (N, 2), m), split at the middle of the arc
+    they span around (cx, cy) (m), about the circle of `radius` (m): (first, second), NaN for a half
+    of fewer than 3 points. Below 1 for a half on a flat face (a box's edge) that the circle touches."""
+    return tuple(line_ratio(half, cx, cy, radius) for half in _halves(xy, cx, cy))
+
+
 def facet_ratio(xy, cx, cy, radius):
-    """How straight the two halves of an arc of points are (dimensionless): split at the middle of
-    the arc they span around (cx, cy) (m), the larger over the halves of the rms distance to the
-    half's own best line over the rms distance to the circle of `radius` (m). Above 1 when the
-    circle's curvature shows through the noise; below 1 on both halves for two flat faces meeting
-    at a corner (a box's) that a circle touches. NaN when a half holds fewer than 3 points."""
-    ratio = 0.0
-    for half in _halves(xy, cx, cy):
-        if len(half) < 3:
-            return float("nan")
-        ratio = max(ratio, line_ratio(half, cx, cy, radius))
-    return float(ratio)
+    """How straight the two halves of an arc of points are (dimensionless): the larger of their
+    half_line_ratios. Above 1 when the circle's curvature shows through the noise; below 1 on both
+    halves for two flat faces meeting at a corner (a box's) that a circle touches. NaN when a half
+    holds fewer than 3 points."""
+    return float(np.max(half_line_ratios(xy, cx, cy, radius)))
 
 
 @dataclass(frozen=True, eq=False)

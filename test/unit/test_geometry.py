@@ -886,6 +886,24 @@ def test_facet_ratio_tells_a_corner_from_an_arc():
     assert np.isnan(g.facet_ratio(arc[:4], 0.0, 0.0, r))
 
 
+def test_half_line_ratios_tell_an_edge_from_an_arc():
+    """An outline half on a circle's arc, half on one flat face touching it (a box's top's edge over
+    its side face): the arc's half curves (above 1), the face's is straight (below 0.5), in either
+    order; the larger is the facet ratio; a half of fewer than 3 points is NaN."""
+    rng = np.random.default_rng(12)
+    r, noise = 0.03, 0.0008
+    angle = rng.uniform(0.0, 1.5, 200)
+    arc = np.c_[r * np.cos(angle), r * np.sin(angle)]
+    # The face along the tangent at angle 0, from the tangent point to 25 mm below it.
+    face = np.c_[np.full(200, r), rng.uniform(-0.025, 0.0, 200)]
+    outline = np.concatenate([arc, face]) + rng.normal(0.0, noise, (400, 2))
+    first, second = g.half_line_ratios(outline, 0.0, 0.0, r)
+    assert first < 0.5 < 1.0 < second  # the halves go around counter-clockwise: the face's first
+    assert g.facet_ratio(outline, 0.0, 0.0, r) == second
+    assert g.half_line_ratios(outline * [1.0, -1.0], 0.0, 0.0, r)[1] < 0.5  # mirrored: the face's last
+    assert np.isnan(g.half_line_ratios(arc[:4], 0.0, 0.0, r)).any()
+
+
 def test_radius_standard_error_is_the_spread_of_fitted_radii():
     """Noisy points (1 mm) over an arc of a circle of r 32 mm, fitted anew each of 300 times: the
     standard error of the first fit's radius is a fraction of a millimetre over 2.5 rad, within 25 % of
