@@ -1637,7 +1637,7 @@ def _lid_judged(free, z_lid, lid, sigma, r_eps, ctx):
         # such stripe, judged as it is if something in front stands higher (_lid_rim's shaded).
         stripe = _side_stripe(rim, pts, z_lid, r_eps, ctx)
         pinned = by_side = (None if stripe is None
-                            else _rim_with_side(rim, stripe[:, :2], lid, sigma, r_eps, ctx, side_counts=True))
+                            else _rim_with_side(rim, stripe, lid, sigma, r_eps, ctx, side_counts=True))
         if pinned is not None and g.line_ratio(stripe, pinned.cx, pinned.cy, pinned.radius) < s.flat_ratio:
             # A stripe lying nearer a line than its circle by more than 1 / flat_ratio (rms) is a box's
             # face under its top: no lid at this height (fresh 10528 of "cluttered table", a 69 x 44 mm
@@ -1806,16 +1806,17 @@ def _side_stripe(rim, pts, z_lid, r_eps, ctx):
     """The stripe of side under a lid's rim (geometry.RimCircle) that may pin its circle
     (_rim_with_side, the side counting toward its arc): pts' points (float (N, 3), plane frame, m)
     within 2 r_eps of the rim's circle on its half facing the sensor, more than a band under the lid
-    at z_lid (m), float (M, 3); None when fewer than shape_bins, or over min_arc (a side seen wider is
-    the rounds' to fit and judge: a low box's faces pinned its top's rim, development 83 of "cluttered
-    table")."""
+    at z_lid (m), their (x, y), float (M, 2); None when fewer than shape_bins, or over min_arc (a
+    side seen wider is the rounds' to fit and judge: a low box's faces pinned its top's rim,
+    development 83 of "cluttered table")."""
     c, s = ctx.config, ctx.search
     dist = np.hypot(pts[:, 0] - rim.cx, pts[:, 1] - rim.cy)
     under = ((np.abs(dist - rim.radius) <= 2 * r_eps) & (pts[:, 2] < z_lid - s.band_height)
              & _facing(pts[:, 0], pts[:, 1], rim.cx, rim.cy, rim.radius, ctx))
-    if np.count_nonzero(under) < c.shape_bins or g.arc_coverage(pts[under, :2], rim.cx, rim.cy) >= c.min_arc:
+    stripe = pts[under, :2]
+    if len(stripe) < c.shape_bins or g.arc_coverage(stripe, rim.cx, rim.cy) >= c.min_arc:
         return None
-    return pts[under]
+    return stripe
 
 
 def _lid_rim(rim, lid, sigma, r_eps, ctx, beside=None, shaded=False):
