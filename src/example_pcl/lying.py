@@ -203,8 +203,9 @@ def fit_lying_cylinders(points, r_eps, min_radius, max_radius, max_gap, directio
     the run of `band`-long bands along the axis that the circle explains (geometry.band_run: each
     with at least band_fraction of the fullest band's points on it and no more inside: not a
     neighbour's top) is kept (the fit's extent), refitted on it without the slabs of r_eps at its
-    ends, and, while that turns the axis by more than a degree (and leaves a can's radius on the
-    table; at most max_turns times), the run is found again along it and refitted. With the sensor
+    ends, and, while that turns the axis by more than a degree or moves the radius by more than r_eps /
+    2 (and leaves a can's radius on the table; at most max_turns times), the run is found again along
+    it and refitted. With the sensor
     ((x, y, z), plane frame, m) given, only the points on a cylinder's half facing it count
     (_facing), and with occluders (float (M, 3), plane frame, m) the run goes on over bands where the
     rest of that half is hidden behind them, or unlit by the IR projector (`projector`, (3,), plane
@@ -284,10 +285,14 @@ def fit_lying_cylinders(points, r_eps, min_radius, max_radius, max_gap, directio
             # A fit on a piece of the can may point a few degrees off its axis, and its circle explains a
             # shorter run along it: again along the refitted axis (if it can be a can's) until it turns no
             # more. Once was not enough: fresh 8801 of "lying cans touching" turned 8 then 4 degrees, and
-            # the run of the second axis, cut short 4 cm from the end, stood.
+            # the run of the second axis, cut short 4 cm from the end, stood. So too when the radius
+            # grows: a circle drawn over a can and a lower box's top at its end met the top along its
+            # flanks, and the run went on over it; the refit's holds it inside (fresh 10917 of "lying
+            # can touching box", r 28 -> 32 mm on one axis, 44 mm too long).
             for _ in range(max_turns):
                 turned = (refit.theta, refit.offset, refit.zc, refit.radius, refit.rms, refit.n_inliers)
-                if abs(np.sin(refit.theta - fit[0])) <= np.sin(np.radians(1)) or not can_sized(turned):
+                same_axis = abs(np.sin(refit.theta - fit[0])) <= np.sin(np.radians(1))
+                if (same_axis and abs(refit.radius - fit[3]) <= 0.5 * r_eps) or not can_sized(turned):
                     break
                 again = explained(turned)
                 if again is None or again == run:

@@ -1073,6 +1073,15 @@ def test_a_lying_cans_run_is_found_again_until_its_axis_turns_no_more():
     assert_generated_lying_cans_found("lying cans touching", 8801)
 
 
+def test_a_lying_cans_run_is_found_again_when_its_refit_circle_grows():
+    """Fresh 10917 of "lying can touching box" (first run of 10900-10949): a lying can (r 33 mm) end to
+    end with a box 55 mm high. A circle drawn over both (r 28 mm, 4 mm low) met the box's top along its
+    flanks and explained a run over both; refitted on it, r 32 mm, whose circle holds the box's top
+    inside, on the same axis, the run stood: 44 mm too long, a lying miss and a false can. The run is
+    found again when the refit's radius moves by more than r_eps / 2, as when its axis turns."""
+    assert_generated_lying_cans_found("lying can touching box", 10917)
+
+
 def test_a_lying_can_is_found_when_a_circle_over_it_and_a_box_fails_to_refine():
     """Fresh 8312 of "lying can touching box" (first run of 8300-8349): a lying can end to end with a
     box 4 mm lower, seen from its far end. The best circle, drawn over the can's top and the box's,
