@@ -388,8 +388,10 @@ def _explained(q, z, fit, r_eps, sensor, band, fraction, min_points, max_gap, oc
     parts it (_apart_at_seen_end). With occluders ((M, 3), m, plane frame; q is measured from
     `origin`, (x, y)), the run goes on over the bands beyond it whose facing half is seen where it is
     not hidden behind them or unlit by the projector ((3,), plane frame, m; None: not known;
-    _through_hidden, ray_angle as there). The run then loses the bands at one end where no can's side
-    is seen (_without_flat_end: a box's top as high as the can)."""
+    _through_hidden, ray_angle as there), and loses the bands at its ends that show only a stripe of
+    that half where the rest would be in view (_without_bare_ends: a lower box's edge). The run then
+    loses the bands at one end where no can's side is seen (_without_flat_end: a box's top as high as
+    the can)."""
     t, d, zc, r = fit[:4]
     axial, lateral = _on_axis(q, t)
     dl, dz = lateral - d, z - zc
@@ -419,6 +421,10 @@ def _explained(q, z, fit, r_eps, sensor, band, fraction, min_points, max_gap, oc
         may_join = (band_on >= min_points) & (band_inside <= band_on) & (other < min_points)
         run = _through_hidden(run, may_join, bands, on, dl, dz, fit, a0, band, r_eps, sensor, occluders, origin,
                               projector, ray_angle)
+        run = _without_bare_ends(run, bands, on, dl, dz, fit, a0, band, r_eps, sensor, occluders, origin, projector,
+                                 ray_angle)
+        if run is None:
+            return None
     near = facing & (np.abs(rho - r) <= 3 * r_eps)
     # Up the flank toward the sensor, 30-65 degrees from the top: a box's corner there lies off
     # the circle (a square's around it), a can's side on it.
@@ -466,22 +472,29 @@ def _apart_at_seen_end(run, band_on, band_inside, bands, axial, dl, dz, inside, 
     return max(pieces, key=lambda piece: band_on[piece[0]:piece[1] + 1][good[piece[0]:piece[1] + 1]].sum())
 
 
+def _not_its_own(occluders, origin, fit, r_eps):
+    """The occluders ((M, 3), m, plane frame) farther than r + r_eps from the axis of the cylinder fit
+    ((theta, offset, zc, r, ...), measured from `origin`, (x, y)), in its coordinates: not the can
+    itself (its own near side would hide its far parts)."""
+    t, d, zc, r = fit[:4]
+    occ = _from_origin(occluders, origin)
+    return occ[np.hypot(_on_axis(occ[:, :2], t)[1] - d, occ[:, 2] - zc) > r + r_eps]
+
+
 def _through_hidden(run, may_join, bands, on, dl, dz, fit, a0, band, r_eps, sensor, occluders, origin, projector=None,
                     ray_angle=0.0):
     """The run (first, last band) grown over the bands beyond its ends that may join it (may_join, per
     band: enough points on the circle, no more inside, nothing else just outside) and whose facing half
     lies, where its points on the circle (`on`, bool, with bands, dl and dz: each point's band and
     lateral and vertical offsets from the axis, m) show none, behind the occluders ((M, 3), m, plane
-    frame; the fit's coordinates are measured from `origin`, (x, y)) seen from the sensor: a can lying
-    behind a lower object shows only its top there, fewer points than band_run asks ("cluttered
-    table" 1602, a cup in front of one end). ray_angle: as _hidden_where_unseen's."""
+    frame, but the can's own: _not_its_own; the fit's coordinates are measured from `origin`, (x, y))
+    seen from the sensor: a can lying behind a lower object shows only its top there, fewer points
+    than band_run asks ("cluttered table" 1602, a cup in front of one end). ray_angle: as
+    _hidden_where_unseen's."""
     first, last = run
     if not (first > 0 and may_join[first - 1]) and not (last + 1 < len(may_join) and may_join[last + 1]):
         return run  # most runs end at an empty band: the occluders are not looked at
-    t, d, zc, r = fit[:4]
-    occ = _from_origin(occluders, origin)
-    # Not the can itself (its own near side would hide its far parts).
-    occ = occ[np.hypot(_on_axis(occ[:, :2], t)[1] - d, occ[:, 2] - zc) > r + r_eps]
+    occ = _not_its_own(occluders, origin, fit, r_eps)
     lit_from = _from_origin(projector, origin)
 
     def hidden(b):
@@ -496,6 +509,39 @@ def _through_hidden(run, may_join, bands, on, dl, dz, fit, a0, band, r_eps, sens
     while hidden(last + 1):
         last += 1
     return first, last
+
+
+def _without_bare_ends(run, bands, on, dl, dz, fit, a0, band, r_eps, sensor, occluders, origin, projector=None,
+                       ray_angle=0.0, min_bands=2):
+    """The run (first, last band; None if none is left) without the bands at its ends, min_bands or
+    more in a row, whose points on the circle (`on`, bool; bands, dl, dz as _through_hidden's) come
+    near fewer than half the places of its facing half (geometry.unseen_angles) and leave some of
+    the rest where the sensor would see the can's side (not behind the occluders nor unlit:
+    _hidden_where_unseen, arguments as _through_hidden's): a lower box's top beyond a can's end meets
+    its circle only along its edge (fresh 10928 of "lying can touching box", 35 mm too long)."""
+    first, last = run
+    fl, fz = _toward_sensor(*fit[:3], sensor)
+    toward = math.atan2(fz, fl)
+    half = (len(g.near_half_angles(toward)) + 1) // 2
+    others = []  # the occluders but the can's own, once a band needs them
+
+    def bare(b):
+        seen = np.arctan2(dz[on & (bands == b)], dl[on & (bands == b)])
+        if len(g.unseen_angles(seen, toward)) < half:
+            return False
+        if not others:
+            others.append(_not_its_own(occluders, origin, fit, r_eps))
+        return not _hidden_where_unseen(fit, [a0 + (b + 0.5) * band], seen, sensor, others[0],
+                                        _from_origin(projector, origin), ray_angle)
+
+    lo, hi = first, last
+    while lo <= last and bare(lo):
+        lo += 1
+    while hi >= lo and bare(hi):
+        hi -= 1
+    # One such band is the can's own last one, its end within it: seen over its top only.
+    lo, hi = (lo if lo - first >= min_bands else first), (hi if last - hi >= min_bands else last)
+    return (lo, hi) if lo <= hi else None
 
 
 def _hidden_where_unseen(fit, axial, seen, sensor, occluders, projector=None, ray_angle=0.0):

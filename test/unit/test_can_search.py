@@ -1082,6 +1082,15 @@ def test_a_lying_cans_run_is_found_again_when_its_refit_circle_grows():
     assert_generated_lying_cans_found("lying can touching box", 10917)
 
 
+def test_a_lower_boxs_edge_beyond_a_lying_cans_end_is_no_side_of_it():
+    """Fresh 10928 of "lying can touching box" (first run of 10900-10949): a lying can (r 35 mm) end to
+    end with a box 45 mm high, wider than it. Past the can's end only the box's top edge and face met
+    its circle, 4-8 points a band at 72-91 degrees from the top (the can's own: 25-36 over -25-75),
+    enough for the run of bands, which went on 35 mm over the box. A band at the run's end whose points
+    come near fewer than half its facing half, the rest in view of the sensor, is left out now."""
+    assert_generated_lying_cans_found("lying can touching box", 10928)
+
+
 def test_a_lying_can_is_found_when_a_circle_over_it_and_a_box_fails_to_refine():
     """Fresh 8312 of "lying can touching box" (first run of 8300-8349): a lying can end to end with a
     box 4 mm lower, seen from its far end. The best circle, drawn over the can's top and the box's,
@@ -1170,6 +1179,35 @@ def test_the_rest_of_a_lying_cans_side_is_hidden_only_behind_something_nearer():
     assert not hidden(fit, top_lateral, top_z, -0.07, 0.07, 0.005, sensor, np.empty((0, 3)))
     assert not hidden(fit, top_lateral, top_z, -0.07, 0.07, 0.005, sensor, surface(0.0, 0.08, 0.2))
     assert hidden(fit, p[facing, 0], p[facing, 1], -0.07, 0.07, 0.005, sensor, np.empty((0, 3)))
+
+
+def test_a_band_at_a_lying_cans_end_showing_a_stripe_of_its_side_in_view_leaves_the_run():
+    """A lying can (axis along x, r 35 mm) whose side fills bands 0-9 (1 cm each) over its half facing
+    the sensor, and bands 10-12 beyond show only a stripe at 60-66 degrees from the lateral axis (a
+    lower box's edge): those bands leave the run where the rest of that half would be in view; a wall
+    in front hiding it keeps them, and a stripe at the run's start goes as one at its end. One band
+    alone so is the can's own, its end within it (a lying can's last band, seen over its top only,
+    development 31 of "lying can"): it stays."""
+    r = 0.035
+    fit = (0.0, 0.0, r, r)
+    sensor = np.array([0.0, -0.8, 0.6])
+    a, phi = np.meshgrid(np.arange(0.0005, 0.13, 0.002), np.radians(np.arange(56.0, 235.0, 2.0)))
+    a, phi = a.ravel(), phi.ravel()
+    keep = (a < 0.1) | (phi <= np.radians(66))
+    a, phi = a[keep], phi[keep]
+    dl, dz = r * np.cos(phi), r * np.sin(phi)
+    bands, on = (a / 0.01).astype(np.int64), np.ones(len(a), bool)
+
+    def run(occluders, start=(0, 12)):
+        return lying._without_bare_ends(start, bands, on, dl, dz, fit, 0.0, 0.01, 0.006, sensor, occluders, (0.0, 0.0))
+
+    assert run(np.empty((0, 3))) == (0, 9)
+    ya, yz = np.meshgrid(np.arange(0.09, 0.14, 0.002), np.arange(0.0, 0.2, 0.002))
+    wall = np.column_stack([ya.ravel(), np.full(ya.size, -0.1), yz.ravel()])
+    assert run(wall) == (0, 12)
+    assert run(np.empty((0, 3)), start=(0, 10)) == (0, 10)
+    bands = 12 - bands  # the stripe at the start
+    assert run(np.empty((0, 3))) == (3, 12)
 
 
 def test_a_flat_face_is_no_lying_can_where_a_short_arc_is():
