@@ -1570,21 +1570,34 @@ def _lid_at(free, band, level, sigma, r_eps, ctx, boxes):
     if len(lid) < c.min_fit_points:
         return None, "", None, None
     if _box_top(lid, r_eps, ctx):
+        # A can's lid apart from a box's top as high is no part of it (fresh 11019 of "cluttered table":
+        # a lid at 146 mm, its side hidden by a taller can in front, and a box's top at 148 21 cm away).
+        can, reason, claim = _pieces_judged(free, z_lid, lid, sigma, r_eps, ctx)
+        if can is not None or claim is not None:
+            return can, reason, claim, None
         # The top's own height, within 3 sigma: a can's lid a few millimetres off it, touching the box,
         # is no part of it (fresh 5035 of "can touching box": a lid at 128 mm beside a top at 132).
         z_top = float(np.median(lid[:, 2]))
         return None, "", None, rest & (np.abs(z - z_top) <= max(3 * sigma, 0.002))
     can, reason, claim = _lid_judged(free, z_lid, lid, sigma, r_eps, ctx)
     if can is None and claim is None:
-        # Tops at one height apart from each other are no one rim's: each piece is judged on its own
-        # (fresh 9210 of "cluttered table": a can's lid at 126 mm, its side hidden by a box in front,
-        # and a prism's top as high 1 cm from it, one outline).
-        for piece in _lid_pieces(lid, c.min_fit_points):
-            if not _box_top(piece, r_eps, ctx):
-                can, reason, claim = _lid_judged(free, z_lid, piece, sigma, r_eps, ctx)
-                if can is not None or claim is not None:
-                    break
+        # Tops at one height apart from each other are no one rim's (fresh 9210 of "cluttered table": a
+        # can's lid at 126 mm, its side hidden by a box in front, and a prism's top as high 1 cm from it,
+        # one outline).
+        can, reason, claim = _pieces_judged(free, z_lid, lid, sigma, r_eps, ctx)
     return can, reason, claim, None
+
+
+def _pieces_judged(free, z_lid, lid, sigma, r_eps, ctx):
+    """_lid_judged on each piece of a lid's points apart from the others (_lid_pieces) that is no
+    box's top, largest first, until one is a can or a cup: (Can, "", None), (None, why, claim) or
+    (None, "", None). Arguments as _lid_judged's."""
+    for piece in _lid_pieces(lid, ctx.config.min_fit_points):
+        if not _box_top(piece, r_eps, ctx):
+            can, reason, claim = _lid_judged(free, z_lid, piece, sigma, r_eps, ctx)
+            if can is not None or claim is not None:
+                return can, reason, claim
+    return None, "", None
 
 
 def _lid_pieces(lid, min_points):
