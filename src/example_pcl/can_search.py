@@ -1572,9 +1572,13 @@ def _lid_at(free, band, level, sigma, r_eps, ctx, boxes):
     if _box_top(lid, r_eps, ctx):
         # A can's lid apart from a box's top as high is no part of it (fresh 11019 of "cluttered table":
         # a lid at 146 mm, its side hidden by a taller can in front, and a box's top at 148 21 cm away).
-        can, reason, claim = _pieces_judged(free, z_lid, lid, sigma, r_eps, ctx)
-        if can is not None or claim is not None:
-            return can, reason, claim, None
+        # Only a lid wider than a can that does not fill its rectangle holds both (a box's top alone fills
+        # it: no pieces looked for).
+        if (_wider_than_a_can(lid, r_eps, ctx)
+                and g.rectangularity(lid[:, :2]) <= ctx.search.max_lid_rectangularity):
+            can, reason, claim = _pieces_judged(free, z_lid, lid, sigma, r_eps, ctx)
+            if can is not None or claim is not None:
+                return can, reason, claim, None
         # The top's own height, within 3 sigma: a can's lid a few millimetres off it, touching the box,
         # is no part of it (fresh 5035 of "can touching box": a lid at 128 mm beside a top at 132).
         z_top = float(np.median(lid[:, 2]))
@@ -1630,8 +1634,13 @@ def _box_top(lid, r_eps, ctx):
     cut short by a straight shadow, fills less: fresh 5048 of "cluttered table", a 46 x 42 mm box's top
     behind a taller mug, its rim rms 2.9 mm at 1.2 m, 0.94; the 10 lids alone on "cans touching" and
     "cluttered table" 0-99: 0.79-0.84). r_eps (m): the circle's tolerance there."""
-    return bool(np.any(np.ptp(lid[:, :2], axis=0) > 2 * (ctx.config.max_radius + r_eps))
-                or g.rectangularity(lid[:, :2]) > ctx.search.max_lid_rectangularity)
+    return _wider_than_a_can(lid, r_eps, ctx) or g.rectangularity(lid[:, :2]) > ctx.search.max_lid_rectangularity
+
+
+def _wider_than_a_can(points, r_eps, ctx):
+    """Whether points (float (N, 3), plane frame, m) spread wider than a can seen from above (max_radius
+    and r_eps, m, either side) along x or y."""
+    return bool(np.any(np.ptp(points[:, :2], axis=0) > 2 * (ctx.config.max_radius + r_eps)))
 
 
 def _lid_judged(free, z_lid, lid, sigma, r_eps, ctx):

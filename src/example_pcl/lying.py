@@ -523,24 +523,30 @@ def _without_bare_ends(run, bands, on, dl, dz, fit, a0, band, r_eps, sensor, occ
     fl, fz = _toward_sensor(*fit[:3], sensor)
     toward = math.atan2(fz, fl)
     half = (len(g.near_half_angles(toward)) + 1) // 2
-    others = []  # the occluders but the can's own, once a band needs them
 
-    def bare(b):
-        seen = np.arctan2(dz[on & (bands == b)], dl[on & (bands == b)])
-        if len(g.unseen_angles(seen, toward)) < half:
-            return False
-        if not others:
-            others.append(_not_its_own(occluders, origin, fit, r_eps))
-        return not _hidden_where_unseen(fit, [a0 + (b + 0.5) * band], seen, sensor, others[0],
-                                        _from_origin(projector, origin), ray_angle)
+    def seen(b):
+        mine = on & (bands == b)
+        return np.arctan2(dz[mine], dl[mine])
 
-    lo, hi = first, last
-    while lo <= last and bare(lo):
-        lo += 1
-    while hi >= lo and bare(hi):
-        hi -= 1
-    # One such band is the can's own last one, its end within it: seen over its top only.
-    lo, hi = (lo if lo - first >= min_bands else first), (hi if last - hi >= min_bands else last)
+    def bare_from(ends):  # how many bands in a row from one end are bare, if min_bands or more
+        sparse = []
+        for b in ends:
+            if len(g.unseen_angles(seen(b), toward)) < half:
+                break
+            sparse.append(b)
+        if len(sparse) < min_bands:
+            return 0  # the occluders are not looked at: most runs end at a band that shows its side
+        others, lit_from = _not_its_own(occluders, origin, fit, r_eps), _from_origin(projector, origin)
+        n = 0
+        for b in sparse:
+            if _hidden_where_unseen(fit, [a0 + (b + 0.5) * band], seen(b), sensor, others, lit_from, ray_angle):
+                break
+            n += 1
+        # One such band is the can's own last one, its end within it: seen over its top only.
+        return n if n >= min_bands else 0
+
+    lo = first + bare_from(range(first, last + 1))
+    hi = last - bare_from(range(last, lo - 1, -1))
     return (lo, hi) if lo <= hi else None
 
 
