@@ -422,7 +422,7 @@ def _explained(q, z, fit, r_eps, sensor, band, fraction, min_points, max_gap, oc
         run = _through_hidden(run, may_join, bands, on, dl, dz, fit, a0, band, r_eps, sensor, occluders, origin,
                               projector, ray_angle)
         run = _without_bare_ends(run, bands, on, dl, dz, fit, a0, band, r_eps, sensor, occluders, origin, projector,
-                                 ray_angle)
+                                 ray_angle, min_points=min_points)
         if run is None:
             return None
     near = facing & (np.abs(rho - r) <= 3 * r_eps)
@@ -512,9 +512,9 @@ def _through_hidden(run, may_join, bands, on, dl, dz, fit, a0, band, r_eps, sens
 
 
 def _without_bare_ends(run, bands, on, dl, dz, fit, a0, band, r_eps, sensor, occluders, origin, projector=None,
-                       ray_angle=0.0, min_bands=2):
-    """The run (first, last band; None if none is left) without the bands at its ends, min_bands or
-    more in a row, whose points on the circle (`on`, bool; bands, dl, dz as _through_hidden's) come
+                       ray_angle=0.0, min_bands=2, min_points=3):
+    """The run (first, last band; None if none is left) without the bands at its ends with min_points
+    or more off the circle beyond them, min_bands or more in a row, whose points on the circle (`on`, bool; bands, dl, dz as _through_hidden's) come
     near fewer than half the places of its facing half (geometry.unseen_angles) and leave some of
     the rest where the sensor would see the can's side (not behind the occluders nor unlit:
     _hidden_where_unseen, arguments as _through_hidden's): a lower box's top beyond a can's end meets
@@ -545,8 +545,14 @@ def _without_bare_ends(run, bands, on, dl, dz, fit, a0, band, r_eps, sensor, occ
         # One such band is the can's own last one, its end within it: seen over its top only.
         return n if n >= min_bands else 0
 
-    lo = first + bare_from(range(first, last + 1))
-    hi = last - bare_from(range(last, lo - 1, -1))
+    # Only where another object lies beyond the run, min_points of it off the circle (a box's top goes
+    # on past its edge): the image's edge across a can leaves only the can's side there, in bands
+    # that show less and less of it (development 5 of "lying can", cut at column 330).
+    other = ~on
+    lo = first + bare_from(range(first, last + 1)) if np.count_nonzero(other & (bands < first)) >= min_points \
+        else first
+    hi = last - bare_from(range(last, lo - 1, -1)) if np.count_nonzero(other & (bands > last)) >= min_points \
+        else last
     return (lo, hi) if lo <= hi else None
 
 

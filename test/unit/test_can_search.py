@@ -1184,10 +1184,11 @@ def test_the_rest_of_a_lying_cans_side_is_hidden_only_behind_something_nearer():
 def test_a_band_at_a_lying_cans_end_showing_a_stripe_of_its_side_in_view_leaves_the_run():
     """A lying can (axis along x, r 35 mm) whose side fills bands 0-9 (1 cm each) over its half facing
     the sensor, and bands 10-12 beyond show only a stripe at 60-66 degrees from the lateral axis (a
-    lower box's edge): those bands leave the run where the rest of that half would be in view; a wall
-    in front hiding it keeps them, and a stripe at the run's start goes as one at its end. One band
-    alone so is the can's own, its end within it (a lying can's last band, seen over its top only,
-    development 31 of "lying can"): it stays."""
+    lower box's edge, its top inside the circle in band 12): in a run of bands 0-11, bands 10-11
+    leave it where the rest of that half would be in view; a wall in front hiding it keeps them, and
+    a stripe at the run's start goes as one at its end. One band alone so is the can's own, its end
+    within it (a lying can's last band, seen over its top only, development 31 of "lying can"), and
+    no other object's points beyond the run is the image's edge across the can: the run stays."""
     r = 0.035
     fit = (0.0, 0.0, r, r)
     sensor = np.array([0.0, -0.8, 0.6])
@@ -1197,17 +1198,21 @@ def test_a_band_at_a_lying_cans_end_showing_a_stripe_of_its_side_in_view_leaves_
     a, phi = a[keep], phi[keep]
     dl, dz = r * np.cos(phi), r * np.sin(phi)
     bands, on = (a / 0.01).astype(np.int64), np.ones(len(a), bool)
+    # The box's top beyond, inside the circle: no point of the can's side.
+    bands, on = np.append(bands, np.full(5, 12)), np.append(on, np.zeros(5, bool))
+    dl, dz = np.append(dl, np.linspace(-0.01, 0.01, 5)), np.append(dz, np.full(5, 0.02))
 
-    def run(occluders, start=(0, 12)):
+    def run(occluders, start=(0, 11)):
         return lying._without_bare_ends(start, bands, on, dl, dz, fit, 0.0, 0.01, 0.006, sensor, occluders, (0.0, 0.0))
 
     assert run(np.empty((0, 3))) == (0, 9)
     ya, yz = np.meshgrid(np.arange(0.09, 0.14, 0.002), np.arange(0.0, 0.2, 0.002))
     wall = np.column_stack([ya.ravel(), np.full(ya.size, -0.1), yz.ravel()])
-    assert run(wall) == (0, 12)
+    assert run(wall) == (0, 11)
     assert run(np.empty((0, 3)), start=(0, 10)) == (0, 10)
+    assert run(np.empty((0, 3)), start=(0, 12)) == (0, 12)
     bands = 12 - bands  # the stripe at the start
-    assert run(np.empty((0, 3))) == (3, 12)
+    assert run(np.empty((0, 3)), start=(1, 12)) == (3, 12)
 
 
 def test_a_flat_face_is_no_lying_can_where_a_short_arc_is():
