@@ -513,12 +513,13 @@ def _through_hidden(run, may_join, bands, on, dl, dz, fit, a0, band, r_eps, sens
 
 def _without_bare_ends(run, bands, on, dl, dz, fit, a0, band, r_eps, sensor, occluders, origin, projector=None,
                        ray_angle=0.0, min_bands=2, min_points=3):
-    """The run (first, last band; None if none is left) without the bands at its ends with min_points
-    or more off the circle beyond them, min_bands or more in a row, whose points on the circle (`on`, bool; bands, dl, dz as _through_hidden's) come
+    """The run (first, last band; None if none is left) without the bands at its ends, min_bands or
+    more in a row, whose points on the circle (`on`, bool; bands, dl, dz as _through_hidden's) come
     near fewer than half the places of its facing half (geometry.unseen_angles) and leave some of
     the rest where the sensor would see the can's side (not behind the occluders nor unlit:
-    _hidden_where_unseen, arguments as _through_hidden's): a lower box's top beyond a can's end meets
-    its circle only along its edge (fresh 10928 of "lying can touching box", 35 mm too long)."""
+    _hidden_where_unseen, arguments as _through_hidden's), where min_points or more lie off the
+    circle beyond them: a lower box's top beyond a can's end meets its circle only along its edge
+    (fresh 10928 of "lying can touching box", 35 mm too long)."""
     first, last = run
     fl, fz = _toward_sensor(*fit[:3], sensor)
     toward = math.atan2(fz, fl)
@@ -549,10 +550,11 @@ def _without_bare_ends(run, bands, on, dl, dz, fit, a0, band, r_eps, sensor, occ
     # on past its edge): the image's edge across a can leaves only the can's side there, in bands
     # that show less and less of it (development 5 of "lying can", cut at column 330).
     other = ~on
-    lo = first + bare_from(range(first, last + 1)) if np.count_nonzero(other & (bands < first)) >= min_points \
-        else first
-    hi = last - bare_from(range(last, lo - 1, -1)) if np.count_nonzero(other & (bands > last)) >= min_points \
-        else last
+    lo, hi = first, last
+    if np.count_nonzero(other & (bands < first)) >= min_points:
+        lo += bare_from(range(first, last + 1))
+    if np.count_nonzero(other & (bands > last)) >= min_points:
+        hi -= bare_from(range(last, lo - 1, -1))
     return (lo, hi) if lo <= hi else None
 
 
