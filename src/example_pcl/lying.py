@@ -530,17 +530,18 @@ def _without_bare_ends(run, bands, on, dl, dz, fit, a0, band, r_eps, sensor, occ
         return np.arctan2(dz[mine], dl[mine])
 
     def bare_from(ends):  # how many bands in a row from one end are bare, if min_bands or more
-        sparse = []
+        sparse = []  # (band, its angles seen)
         for b in ends:
-            if len(g.unseen_angles(seen(b), toward)) < half:
+            angles = seen(b)
+            if len(g.unseen_angles(angles, toward)) < half:
                 break
-            sparse.append(b)
+            sparse.append((b, angles))
         if len(sparse) < min_bands:
             return 0  # the occluders are not looked at: most runs end at a band that shows its side
         others, lit_from = _not_its_own(occluders, origin, fit, r_eps), _from_origin(projector, origin)
         n = 0
-        for b in sparse:
-            if _hidden_where_unseen(fit, [a0 + (b + 0.5) * band], seen(b), sensor, others, lit_from, ray_angle):
+        for b, angles in sparse:
+            if _hidden_where_unseen(fit, [a0 + (b + 0.5) * band], angles, sensor, others, lit_from, ray_angle):
                 break
             n += 1
         # One such band is the can's own last one, its end within it: seen over its top only.
