@@ -391,7 +391,7 @@ def _explained(q, z, fit, r_eps, sensor, band, fraction, min_points, max_gap, oc
     _through_hidden, ray_angle as there), and loses the bands at its ends that show only a stripe of
     that half where the rest would be in view (_without_bare_ends: a lower box's edge). The run then
     loses the bands at one end where no can's side is seen (_without_flat_end: a box's top as high as
-    the can)."""
+    the can) or whose crown is level (_without_level_crown: a lower box's top, narrower than the can)."""
     t, d, zc, r = fit[:4]
     axial, lateral = _on_axis(q, t)
     dl, dz = lateral - d, z - zc
@@ -433,6 +433,7 @@ def _explained(q, z, fit, r_eps, sensor, band, fraction, min_points, max_gap, oc
     angle = np.arctan2(np.abs(dl), dz)
     diagonal = toward & (angle >= np.radians(30)) & (angle <= np.radians(65))
     run = _without_flat_end(bands[near], (rho - r)[near], diagonal[near], run, r_eps)
+    run = _without_level_crown(run, bands[near], dl[near], dz[near], (rho - r)[near], r)
     return a0 + run[0] * band, a0 + (run[1] + 1) * band
 
 
@@ -648,6 +649,56 @@ def _without_flat_end(bands, residual, diagonal, run, r_eps, min_bands=2, min_co
     if np.count_nonzero(scatters[gone]) < min_bands:
         return run
     return (first, first + int(gone[0]) - 1) if at_end else (first + int(gone[0]) + 1, last)
+
+
+def _without_level_crown(run, bands, dl, dz, residual, r, min_bands=2, min_points=10, bend=0.5, ratio=3.0):
+    """The run (first, last band) without the bands at one end whose crown is level: a lower box's top
+    beyond the can's end, narrower than it, lies within r_eps of its circle all across, but flat where
+    a can's side bends down by 1 / (2 r) (1/m). At least min_bands in a row at an end, each with
+    min_points in its crown (within r / 2 of the axis seen from above, above it) spread across it,
+    bending down by less than `bend` of a can's, together scattering more than `ratio` x the rest of
+    the run (less its band at the other end: its disc's rim) and the rest's crown bending as a can's.
+    bands, dl, dz (m: from the axis) and residual (m: radial) of the points near the circle on its
+    facing half."""
+    first, last = run
+    n = last - first + 1
+    if n <= min_bands:
+        return run
+    keep = (bands >= first) & (bands <= last)
+    b, x, y = bands[keep] - first, dl[keep], dz[keep]
+    count = np.bincount(b, minlength=n)
+    sq = np.bincount(b, residual[keep] ** 2, minlength=n)
+    crown = (np.abs(x) <= 0.5 * r) & (y > 0)
+    bc, xc, yc = b[crown], x[crown], y[crown]
+    # Per band, the sums a least-squares parabola y = a x^2 + b x + c across the crown is solved from.
+    sums = np.stack([np.bincount(bc, xc ** k, minlength=n) for k in range(5)]
+                    + [np.bincount(bc, yc * xc ** k, minlength=n) for k in range(3)])
+
+    def bends(s):
+        """Whether the crown of the sums s bends down as a can's; None when too few points or spread
+        over less than half the crown's width (a uniform spread of width w has variance w^2 / 12)."""
+        if s[0] < min_points or s[2] / s[0] - (s[1] / s[0]) ** 2 < (0.5 * r) ** 2 / 12:
+            return None
+        m = np.array([[s[4], s[3], s[2]], [s[3], s[2], s[1]], [s[2], s[1], s[0]]])
+        try:
+            return bool(np.linalg.solve(m, s[[7, 6, 5]])[0] < -bend / (2 * r))
+        except np.linalg.LinAlgError:  # two lateral places only: no parabola
+            return None
+
+    for at_end in (True, False):
+        order = np.arange(n - 1, -1, -1) if at_end else np.arange(n)
+        level = 0
+        while level < n - 1 and bends(sums[:, order[level]]) is False:
+            level += 1
+        if level < min_bands:
+            continue
+        gone, rest = order[:level], order[level:-1]
+        if bends(sums[:, rest].sum(axis=1)) is not True or count[rest].sum() == 0:
+            continue
+        rms_gone = math.sqrt(sq[gone].sum() / max(count[gone].sum(), 1))
+        if rms_gone > ratio * math.sqrt(sq[rest].sum() / count[rest].sum()):
+            return (first, first + int(gone[-1]) - 1) if at_end else (first + int(gone[-1]) + 1, last)
+    return run
 
 
 def end_positions(axial, rho, r, r_eps, extent=(-np.inf, np.inf), band=0.0, z=None):

@@ -1091,6 +1091,15 @@ def test_a_lower_boxs_edge_beyond_a_lying_cans_end_is_no_side_of_it():
     assert_generated_lying_cans_found("lying can touching box", 10928)
 
 
+def test_a_lower_narrower_boxs_level_top_beyond_a_lying_cans_end_is_no_side_of_it():
+    """Fresh 11428 of "lying can touching box" (first run of 11400-11449): a lying can (r 38 mm) end to
+    end with a box 7 mm lower and 63 mm wide. Its top and side faces lie within r_eps (6 mm) of the
+    can's circle all across, scattering 4.4 mm rms against the can's 0.5, and its corner on the flank
+    within 3 mm: the run went on 44 mm over it, a lying miss and a false can. Its crown is level, a
+    can's bends down (1 / 2r); the bands at the run's end with a level crown are left out now."""
+    assert_generated_lying_cans_found("lying can touching box", 11428)
+
+
 def test_a_lying_can_is_found_when_a_circle_over_it_and_a_box_fails_to_refine():
     """Fresh 8312 of "lying can touching box" (first run of 8300-8349): a lying can end to end with a
     box 4 mm lower, seen from its far end. The best circle, drawn over the can's top and the box's,
@@ -1213,6 +1222,41 @@ def test_a_band_at_a_lying_cans_end_showing_a_stripe_of_its_side_in_view_leaves_
     assert run(np.empty((0, 3)), start=(0, 12)) == (0, 12)
     bands = 12 - bands  # the stripe at the start
     assert run(np.empty((0, 3)), start=(1, 12)) == (3, 12)
+
+
+def test_a_level_crown_at_a_lying_cans_end_leaves_the_run():
+    """A lying can (axis along x, r 38 mm, Kinect-like noise 0.5 mm) over bands 0-11 (1 cm each) and a
+    box beyond it over bands 12-15, 7 mm lower and 63 mm wide: its top and side faces within r_eps
+    (6 mm) of the circle, its top level. The box's bands leave the run, at either end; the can alone,
+    or a box whose top bends as a can's side (a second can end to end with it), keeps its run."""
+    r, width, top = 0.038, 0.0315, 0.069
+    rng = np.random.default_rng(5)
+    phi = np.radians(rng.uniform(-30.0, 130.0, 2000))  # the half facing the sensor (dl > 0 toward it)
+    a = rng.uniform(0.0, 0.12, 2000)
+    can = np.c_[a, r * np.cos(phi), r * np.sin(phi)]
+    # The box's profile across the axis: its side face at dl = width up to its top, then the top.
+    s = rng.uniform(0.0, 1.0, 800)
+    side_height, top_width = top - r, 2 * width
+    along = s * (side_height + top_width)
+    dl = np.where(along < side_height, width, width - (along - side_height))
+    dz = np.where(along < side_height, along, top - r)
+    box = np.c_[rng.uniform(0.12, 0.16, 800), dl, dz]
+    keep = np.hypot(box[:, 1], box[:, 2]) > 0.6 * r
+    box = box[keep]
+
+    def run(points, start):
+        points = points + rng.normal(0.0, 0.0005, points.shape)
+        residual = np.hypot(points[:, 1], points[:, 2]) - r
+        near = np.abs(residual) <= 3 * 0.006
+        return lying._without_level_crown(start, (points[near, 0] / 0.01).astype(np.int64), points[near, 1],
+                                          points[near, 2], residual[near], r)
+
+    assert run(np.concatenate([can, box]), (0, 15)) == (0, 11)
+    mirrored = np.concatenate([can, box]) * [-1.0, 1.0, 1.0] + [0.16, 0.0, 0.0]
+    assert run(mirrored, (0, 15)) == (4, 15)
+    assert run(can, (0, 11)) == (0, 11)
+    other_can = can[can[:, 0] < 0.04] + [0.12, 0.0, 0.0]
+    assert run(np.concatenate([can, other_can]), (0, 15)) == (0, 15)
 
 
 def test_a_flat_face_is_no_lying_can_where_a_short_arc_is():
