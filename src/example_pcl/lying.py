@@ -693,7 +693,7 @@ def _without_level_crown(run, bands, dl, dz, residual, r, min_bands=2, min_point
         if level < min_bands:
             continue
         gone, rest = order[:level], order[level:-1]
-        if bends(sums[:, rest].sum(axis=1)) is not True or count[rest].sum() == 0:
+        if bends(sums[:, rest].sum(axis=1)) is not True:  # (and so the rest holds points)
             continue
         rms_gone = math.sqrt(sq[gone].sum() / max(count[gone].sum(), 1))
         if rms_gone > ratio * math.sqrt(sq[rest].sum() / count[rest].sum()):
