@@ -432,8 +432,9 @@ def _explained(q, z, fit, r_eps, sensor, band, fraction, min_points, max_gap, oc
     toward = dl * fl > 0 if abs(fl) > 1e-6 else np.ones(len(dl), bool)
     angle = np.arctan2(np.abs(dl), dz)
     diagonal = toward & (angle >= np.radians(30)) & (angle <= np.radians(65))
-    run = _without_flat_end(bands[near], (rho - r)[near], diagonal[near], run, r_eps)
-    run = _without_level_crown(run, bands[near], dl[near], dz[near], (rho - r)[near], r)
+    near_bands, near_residual = bands[near], (rho - r)[near]
+    run = _without_flat_end(near_bands, near_residual, diagonal[near], run, r_eps)
+    run = _without_level_crown(run, near_bands, dl[near], dz[near], near_residual, r)
     return a0 + run[0] * band, a0 + (run[1] + 1) * band
 
 

@@ -1231,7 +1231,7 @@ def test_a_level_crown_at_a_lying_cans_end_leaves_the_run():
     or a box whose top bends as a can's side (a second can end to end with it), keeps its run."""
     r, width, top = 0.038, 0.0315, 0.069
     rng = np.random.default_rng(5)
-    phi = np.radians(rng.uniform(-30.0, 130.0, 2000))  # the half facing the sensor (dl > 0 toward it)
+    phi = np.radians(rng.uniform(-30.0, 130.0, 2000))  # about the half a sensor above and beside it sees
     a = rng.uniform(0.0, 0.12, 2000)
     can = np.c_[a, r * np.cos(phi), r * np.sin(phi)]
     # The box's profile across the axis: its side face at dl = width up to its top, then the top.
