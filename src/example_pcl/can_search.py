@@ -27,7 +27,8 @@ and measured figures are in docs/can_search.md; in short, per cluster and round:
 4. **What it stands on.** Base within ``table_gap`` of the table: on the table, base seen.
    Else a surface at the base's height around the can, beside or behind its front (a tin's lid,
    a box's top): on that object (``support`` "object", or "can" when it is a can found
-   below), base at that height. Else an object in front reaching up to the lowest visible
+   below), base at that height, unless the can's own side goes on down its circle to the table
+   (the surface is a neighbour's top). Else an object in front reaching up to the lowest visible
    point, or the image's edge cutting off the side's lowest points: base hidden, inferred on the
    table (``base_seen`` False). Else it floats: rejected.
 5. **Not a can.** Open top: points within the circle on its far half (away from the sensor) below
@@ -1031,6 +1032,8 @@ def _support(points, cx, cy, r, base, r_eps, sigma, ctx):
     n_beside = int(np.count_nonzero(beside))
     if n_beside >= s.min_band_points or narrower:
         base_z = _top_layer(z[level], base, sigma) if n_beside >= s.min_band_points else base
+        if not narrower and _side_goes_on_down(points, cx, cy, r, base_z - 3 * sigma, r_eps, ctx):
+            return "table", True, 0.0, ""
         below = "object"
         for other in ctx.found:
             top = other.support_height + other.height
@@ -1064,6 +1067,32 @@ def _support(points, cx, cy, r, base, r_eps, sigma, ctx):
         return "table", True, 0.0, ""
     return None, False, base, (f"its lowest side point is {100 * base:.1f} cm above the table with nothing "
                                "under it (floats)")
+
+
+def _side_goes_on_down(points, cx, cy, r, below, r_eps, ctx):
+    """Whether the side of the circle (cx, cy, r) goes on down from under a level surface beside it
+    (below: m, under its top and noise) to the table, curved, over a can's arc (points: float (N,
+    3), plane frame, m): then the surface is a neighbour's top, no support. A tin's rim 3 mm from a can
+    (fresh 11848 of "cluttered table") shifted the bands at its height off the circle, the run started
+    above them and the can stood on the tin; its 73 points below were a second can. A box's face under
+    a can crosses its circle straight (development 1 of "can on box": over 0.79 rad, each half 0.12 as
+    far from a line as from the circle); a low support's top, which lies on the circle all round, is
+    above `below`."""
+    c, s = ctx.config, ctx.search
+    z = points[:, 2]
+    dist = np.hypot(points[:, 0] - cx, points[:, 1] - cy)
+    under = (z < below) & (z >= c.min_height)
+    on = under & (np.abs(dist - r) <= r_eps) & _facing(points[:, 0], points[:, 1], cx, cy, r, ctx)
+    if np.count_nonzero(under & (dist < r - r_eps)) >= s.min_band_points or np.count_nonzero(on) < c.min_fit_points:
+        return False
+    # Every whole band under the surface, two at least, down to one within table_gap of the table.
+    first, last = int((c.min_height + s.table_gap) / s.band_height), int(below / s.band_height) - 1
+    counts = np.bincount((z[on] / s.band_height).astype(int), minlength=last + 1)
+    if last - first < 1 or np.any(counts[first:last + 1] < s.min_band_points):
+        return False
+    xy = points[on, :2]
+    return (g.arc_coverage(xy, cx, cy) >= 0.5 * c.min_arc
+            and g.facet_ratio(xy, cx, cy, r) >= s.max_facet_ratio)
 
 
 def _top_layer(z, base, sigma):

@@ -1660,6 +1660,52 @@ def test_a_supports_top_is_its_top_layer_not_the_median_with_its_side():
     assert cs._top_layer(np.concatenate([lid, side]), 0.103, 0.0006) == np.median(np.concatenate([lid, side]))
 
 
+def test_a_neighbours_top_beside_a_can_whose_side_goes_on_down_is_no_support():
+    """A level surface beside a can's base (m, the lowest point of its run) is a neighbour's top, no
+    support, when the can's side goes on down its circle to the table, curved, over a can's arc: then it
+    stands on the table. Not when what lies on the circle below is a box's face crossing it straight, or
+    nothing does, or a low support's top all round it."""
+    rng = np.random.default_rng(11)
+    angle = rng.uniform(np.radians(-160), np.radians(-20), 600)
+    z = rng.uniform(0.0, 0.14, 600)
+    side = np.c_[0.03 * np.cos(angle), 0.03 * np.sin(angle), z]
+    # A tin's top 60 mm up, its rim 3 mm beside the can's left.
+    top_angle = rng.uniform(np.radians(150), np.radians(210), 60)
+    reach = rng.uniform(0.037, 0.055, 60)
+    tin_top = np.c_[reach * np.cos(top_angle), reach * np.sin(top_angle), rng.normal(0.06, 0.0005, 60)]
+    face_x = rng.uniform(-0.012, 0.012, 300)
+    face = np.c_[face_x, np.full(300, -0.031), rng.uniform(0.0, 0.072, 300)]
+    upper = side[z >= 0.072]
+    cases = ((np.vstack([side, tin_top]), "table", 0.0), (np.vstack([upper, face, tin_top]), "object", 0.06),
+             (np.vstack([upper, tin_top]), "object", 0.06))
+    for points, support, height in cases:
+        ctx = cs._Context(config=af.AutoConfig(), search=cs.CylinderSearchConfig(), T_sensor_from_plane=np.eye(4),
+                          sensor=np.array([0.0, -0.8, 0.7]), standing=points, rng=rng, found=[])
+        answer = cs._support(points, 0.0, 0.0, 0.03, 0.072, 0.006, 0.001, ctx)
+        assert answer[0] == support and answer[2] == pytest.approx(height, abs=0.002), (support, answer)
+    # A low box's top 34 mm up, all round the can's base and on its circle too, is its support (its front
+    # face, 30 mm from the axis, lies on the circle's near side below it: development 460 of "can on box").
+    around = rng.uniform(0, 0.06, (2000, 2)) - 0.03
+    box_top = np.c_[around, rng.normal(0.034, 0.0005, 2000)]
+    box_front = np.c_[rng.uniform(-0.03, 0.03, 300), np.full(300, -0.03), rng.uniform(0.0, 0.034, 300)]
+    points = np.vstack([side[z >= 0.04], box_top[np.hypot(*around.T) > 0.03 - 0.006], box_front])
+    ctx = cs._Context(config=af.AutoConfig(), search=cs.CylinderSearchConfig(), T_sensor_from_plane=np.eye(4),
+                      sensor=np.array([0.0, -0.8, 0.7]), standing=points, rng=rng, found=[])
+    answer = cs._support(points, 0.0, 0.0, 0.03, 0.04, 0.006, 0.001, ctx)
+    assert answer[0] == "object" and answer[2] == pytest.approx(0.034, abs=0.002), answer
+
+
+def test_a_can_beside_a_tins_rim_stands_on_the_table_not_the_tin():
+    """Fresh 11848 of "cluttered table": a can (r 30 mm, 143 mm high) 3 mm from a tin 60 mm high, whose
+    rim just outside its circle shifted the bands at its height off it: the side's run started above
+    them, the can stood on the tin at 60 mm and the 73 points of its side below were a second can. It
+    stands on the table, its full height, and no can is false."""
+    truth, can, off = can_nearest_truth("cluttered table", 11848, lambda t: t["is_can"] and t["radius"] < 0.031)
+    assert off < 0.002 and can.support == "table" and can.base_seen
+    assert can.height == pytest.approx(truth["height"], abs=0.004)
+    assert _false_cans("cluttered table", 11848, [0]) == []
+
+
 def test_a_lids_side_is_seen_in_the_points_on_its_circles_near_half_under_it():
     """_side_seen: the points within r_eps of the circle on its near half (the sensor toward -y)
     under the lid, not the far half's, the lid's or those farther off the circle."""
