@@ -1072,12 +1072,9 @@ def _support(points, cx, cy, r, base, r_eps, sigma, ctx):
 def _side_goes_on_down(points, cx, cy, r, below, r_eps, ctx):
     """Whether the side of the circle (cx, cy, r) goes on down from under a level surface beside it
     (below: m, under its top and noise) to the table, curved, over a can's arc (points: float (N,
-    3), plane frame, m): then the surface is a neighbour's top, no support. A tin's rim 3 mm from a can
-    (fresh 11848 of "cluttered table") shifted the bands at its height off the circle, the run started
-    above them and the can stood on the tin; its 73 points below were a second can. A box's face under
-    a can crosses its circle straight (development 1 of "can on box": over 0.79 rad, each half 0.12 as
-    far from a line as from the circle); a low support's top, which lies on the circle all round, is
-    above `below`."""
+    3), plane frame, m): then the surface is a neighbour's top, no support (a tin's rim beside a can:
+    fresh 11848 of "cluttered table"). A box's face under a can crosses its circle straight; a low
+    support's top, on the circle all round, lies above `below`."""
     c, s = ctx.config, ctx.search
     z = points[:, 2]
     dist = np.hypot(points[:, 0] - cx, points[:, 1] - cy)

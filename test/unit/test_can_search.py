@@ -1673,26 +1673,22 @@ def test_a_neighbours_top_beside_a_can_whose_side_goes_on_down_is_no_support():
     top_angle = rng.uniform(np.radians(150), np.radians(210), 60)
     reach = rng.uniform(0.037, 0.055, 60)
     tin_top = np.c_[reach * np.cos(top_angle), reach * np.sin(top_angle), rng.normal(0.06, 0.0005, 60)]
-    face_x = rng.uniform(-0.012, 0.012, 300)
-    face = np.c_[face_x, np.full(300, -0.031), rng.uniform(0.0, 0.072, 300)]
+    face = np.c_[rng.uniform(-0.012, 0.012, 300), np.full(300, -0.031), rng.uniform(0.0, 0.072, 300)]
     upper = side[z >= 0.072]
-    cases = ((np.vstack([side, tin_top]), "table", 0.0), (np.vstack([upper, face, tin_top]), "object", 0.06),
-             (np.vstack([upper, tin_top]), "object", 0.06))
-    for points, support, height in cases:
-        ctx = cs._Context(config=af.AutoConfig(), search=cs.CylinderSearchConfig(), T_sensor_from_plane=np.eye(4),
-                          sensor=np.array([0.0, -0.8, 0.7]), standing=points, rng=rng, found=[])
-        answer = cs._support(points, 0.0, 0.0, 0.03, 0.072, 0.006, 0.001, ctx)
-        assert answer[0] == support and answer[2] == pytest.approx(height, abs=0.002), (support, answer)
     # A low box's top 34 mm up, all round the can's base and on its circle too, is its support (its front
     # face, 30 mm from the axis, lies on the circle's near side below it: development 460 of "can on box").
     around = rng.uniform(0, 0.06, (2000, 2)) - 0.03
-    box_top = np.c_[around, rng.normal(0.034, 0.0005, 2000)]
+    box_top = np.c_[around, rng.normal(0.034, 0.0005, 2000)][np.hypot(*around.T) > 0.03 - 0.006]
     box_front = np.c_[rng.uniform(-0.03, 0.03, 300), np.full(300, -0.03), rng.uniform(0.0, 0.034, 300)]
-    points = np.vstack([side[z >= 0.04], box_top[np.hypot(*around.T) > 0.03 - 0.006], box_front])
-    ctx = cs._Context(config=af.AutoConfig(), search=cs.CylinderSearchConfig(), T_sensor_from_plane=np.eye(4),
-                      sensor=np.array([0.0, -0.8, 0.7]), standing=points, rng=rng, found=[])
-    answer = cs._support(points, 0.0, 0.0, 0.03, 0.04, 0.006, 0.001, ctx)
-    assert answer[0] == "object" and answer[2] == pytest.approx(0.034, abs=0.002), answer
+    cases = ((np.vstack([side, tin_top]), 0.072, "table", 0.0),
+             (np.vstack([upper, face, tin_top]), 0.072, "object", 0.06),
+             (np.vstack([upper, tin_top]), 0.072, "object", 0.06),
+             (np.vstack([side[z >= 0.04], box_top, box_front]), 0.04, "object", 0.034))
+    for points, base, support, height in cases:
+        ctx = cs._Context(config=af.AutoConfig(), search=cs.CylinderSearchConfig(), T_sensor_from_plane=np.eye(4),
+                          sensor=np.array([0.0, -0.8, 0.7]), standing=points, rng=rng, found=[])
+        answer = cs._support(points, 0.0, 0.0, 0.03, base, 0.006, 0.001, ctx)
+        assert answer[0] == support and answer[2] == pytest.approx(height, abs=0.002), (support, answer)
 
 
 def test_a_can_beside_a_tins_rim_stands_on_the_table_not_the_tin():
