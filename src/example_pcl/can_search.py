@@ -1032,7 +1032,7 @@ def _support(points, cx, cy, r, base, r_eps, sigma, ctx):
     n_beside = int(np.count_nonzero(beside))
     if n_beside >= s.min_band_points or narrower:
         base_z = _top_layer(z[level], base, sigma) if n_beside >= s.min_band_points else base
-        if not narrower and _side_goes_on_down(points, cx, cy, r, base_z - 3 * sigma, r_eps, ctx):
+        if not narrower and _side_goes_on_down(points, dist, cx, cy, r, base_z - 3 * sigma, r_eps, ctx):
             return "table", True, 0.0, ""
         below = "object"
         for other in ctx.found:
@@ -1069,15 +1069,15 @@ def _support(points, cx, cy, r, base, r_eps, sigma, ctx):
                                "under it (floats)")
 
 
-def _side_goes_on_down(points, cx, cy, r, below, r_eps, ctx):
+def _side_goes_on_down(points, dist, cx, cy, r, below, r_eps, ctx):
     """Whether the side of the circle (cx, cy, r) goes on down from under a level surface beside it
     (below: m, under its top and noise) to the table, curved, over a can's arc (points: float (N,
-    3), plane frame, m): then the surface is a neighbour's top, no support (a tin's rim beside a can:
-    fresh 11848 of "cluttered table"). A box's face under a can crosses its circle straight; a low
-    support's top, on the circle all round, lies above `below`."""
+    3), plane frame, m; dist: their distances from its axis, m): then the surface is a neighbour's
+    top, no support (a tin's rim beside a can: fresh 11848 of "cluttered table"). A box's face under a
+    can crosses its circle straight; a low support's top, on the circle all round, lies above
+    `below`."""
     c, s = ctx.config, ctx.search
     z = points[:, 2]
-    dist = np.hypot(points[:, 0] - cx, points[:, 1] - cy)
     under = (z < below) & (z >= c.min_height)
     on = under & (np.abs(dist - r) <= r_eps) & _facing(points[:, 0], points[:, 1], cx, cy, r, ctx)
     if np.count_nonzero(under & (dist < r - r_eps)) >= s.min_band_points or np.count_nonzero(on) < c.min_fit_points:
