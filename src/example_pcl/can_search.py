@@ -718,12 +718,14 @@ def _judge_side(free, cx, cy, r, r_eps, cutoff, sigma, z_lo, z_hi, top, claim, c
 
 
 def _not_stray(points, r_eps, ctx):
-    """Which of a side's points (float (N, 3), plane frame, m) have another within max(2 r_eps, 3 grid
-    spacings) (m): a side is a surface, each point has neighbours in its column at least."""
+    """Which of a side's points (float (N, 3), plane frame, m) have two others within max(2 r_eps, 3 grid
+    spacings) (m): a side is a surface, each point has neighbours in its column at least; a pair of
+    points apart from the rest is none (fresh 12545 of "cluttered table": two of a mug's wall 1.2 rad
+    round a circle through the face of its handle, seen over 0.35 rad, gave it 1.79)."""
     spacing = 3 * ctx.ray_angle * float(np.linalg.norm(points.mean(axis=0) - ctx.sensor))
-    # The nearest other point only (k=2: itself first): counting all within reach costs a dense side more.
-    nearest, _ = cKDTree(points).query(points, k=2, distance_upper_bound=max(2 * r_eps, spacing))
-    return np.isfinite(nearest[:, 1])
+    # The two nearest other points only (k=3: itself first): counting all within reach costs a dense side more.
+    nearest, _ = cKDTree(points).query(points, k=3, distance_upper_bound=max(2 * r_eps, spacing))
+    return np.isfinite(nearest[:, 2])
 
 
 def _no_cans_radius(free, side, cx, cy, r, r_eps, claim, ctx, split):

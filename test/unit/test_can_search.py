@@ -2279,6 +2279,24 @@ def test_stray_points_do_not_stretch_a_sides_arc():
     assert g.arc_coverage(points[kept, :2], 0.0, 0.0) == pytest.approx(0.4)
 
 
+def test_a_pair_of_points_apart_from_a_side_does_not_stretch_its_arc():
+    """_not_stray: a side seen over 0.35 rad (r 24 mm) and a pair of points 5 mm apart 1.2 rad round it,
+    each the other's neighbour (fresh 12545 of "cluttered table": a mug's wall at its foot beyond a
+    circle through the face of its handle, which made that face a can seen over 1.79 rad): the pair
+    goes, the arc is the side's, and the scene has no false can."""
+    r = 0.024
+    angles = np.linspace(-1.16, -0.81, 8)
+    side = np.array([[r * np.cos(a), r * np.sin(a), z] for a in angles for z in np.arange(0.02, 0.06, 0.004)])
+    pair = np.array([[r * np.cos(a), r * np.sin(a), 0.015] for a in (-2.59, -2.40)])
+    points = np.vstack([side, pair])
+    ctx = cs._Context(config=af.AutoConfig(), search=cs.CylinderSearchConfig(), T_sensor_from_plane=np.eye(4),
+                      sensor=np.array([0.0, -0.8, 0.6]), standing=points, rng=np.random.default_rng(0), found=[])
+    kept = cs._not_stray(points, 0.006, ctx)
+    assert kept[:len(side)].all() and not kept[len(side):].any()
+    assert g.arc_coverage(points[kept, :2], 0.0, 0.0) == pytest.approx(0.35)
+    assert _false_cans("cluttered table", 12545, [0]) == []
+
+
 def assert_upright_cans_found(case, seed, max_off, max_height_error=np.inf):
     """As many upright cans found in the generated scene as it holds, each within max_off (m) of its
     axis and max_height_error (m) of its height."""
