@@ -1032,13 +1032,8 @@ def _support(points, cx, cy, r, base, r_eps, sigma, ctx):
     narrower = np.count_nonzero(under_base & (dist < r - r_eps)) >= s.min_band_points \
         or (inside >= s.min_band_points and inside > 0.5 * np.count_nonzero(under_base))
     n_beside = int(np.count_nonzero(beside))
-    # A support's top is level: half the points beside at least lie on their top layer. A slope or walls
-    # are none (a bowl's wall beside the can: fresh 12545 of "cluttered table", 0.26; development 34, 0.14;
-    # the supports on the development seeds 0-39 of the stacked cases: 0.69 at least).
-    level_top = n_beside >= s.min_band_points and np.count_nonzero(
-        np.abs(z[beside] - _top_layer(z[beside], base, sigma)) <= max(3 * sigma, 0.002)) >= 0.5 * n_beside
-    if level_top or narrower:
-        base_z = _top_layer(z[level], base, sigma) if level_top else base
+    if n_beside >= s.min_band_points or narrower:
+        base_z = _top_layer(z[level], base, sigma) if n_beside >= s.min_band_points else base
         if not narrower and _side_goes_on_down(points, dist, cx, cy, r, base_z - 3 * sigma, r_eps, ctx):
             return "table", True, 0.0, ""
         below = "object"
