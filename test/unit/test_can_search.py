@@ -2262,6 +2262,13 @@ def test_a_lid_beside_a_top_as_high_apart_from_it_is_a_piece_of_its_own():
     assert cs._lid_pieces(lid[np.hypot(lid[:, 0], lid[:, 1]) <= 0.033], 10) == []
 
 
+def _not_stray(points, r_eps):
+    """can_search._not_stray of points (float (N, 3), plane frame, m) seen from 0.8 m toward -y, 0.6 m up."""
+    ctx = cs._Context(config=af.AutoConfig(), search=cs.CylinderSearchConfig(), T_sensor_from_plane=np.eye(4),
+                      sensor=np.array([0.0, -0.8, 0.6]), standing=points, rng=np.random.default_rng(0), found=[])
+    return cs._not_stray(points, r_eps, ctx)
+
+
 def test_stray_points_do_not_stretch_a_sides_arc():
     """_not_stray: a side seen over 0.4 rad (columns and rows 4 mm apart, r 39 mm) and two points 21 mm
     apart 0.5 rad beyond it (the edge of a box's side face, fresh 5004 of "cluttered table", where they
@@ -2271,9 +2278,7 @@ def test_stray_points_do_not_stretch_a_sides_arc():
     side = np.array([[r * np.cos(a), r * np.sin(a), z] for a in angles for z in np.arange(0.02, 0.09, 0.004)])
     stray = np.array([[r * np.cos(a), r * np.sin(a), z] for a, z in ((-0.87, 0.05), (-0.33, 0.07))])
     points = np.vstack([side, stray])
-    ctx = cs._Context(config=af.AutoConfig(), search=cs.CylinderSearchConfig(), T_sensor_from_plane=np.eye(4),
-                      sensor=np.array([0.0, -0.8, 0.6]), standing=points, rng=np.random.default_rng(0), found=[])
-    kept = cs._not_stray(points, 0.003, ctx)
+    kept = _not_stray(points, 0.003)
     assert kept[:len(side)].all() and not kept[len(side):].any()
     assert g.arc_coverage(points[:, :2], 0.0, 0.0) > 1.4
     assert g.arc_coverage(points[kept, :2], 0.0, 0.0) == pytest.approx(0.4)
@@ -2289,9 +2294,7 @@ def test_a_pair_of_points_apart_from_a_side_does_not_stretch_its_arc():
     side = np.array([[r * np.cos(a), r * np.sin(a), z] for a in angles for z in np.arange(0.02, 0.06, 0.004)])
     pair = np.array([[r * np.cos(a), r * np.sin(a), 0.015] for a in (-2.59, -2.40)])
     points = np.vstack([side, pair])
-    ctx = cs._Context(config=af.AutoConfig(), search=cs.CylinderSearchConfig(), T_sensor_from_plane=np.eye(4),
-                      sensor=np.array([0.0, -0.8, 0.6]), standing=points, rng=np.random.default_rng(0), found=[])
-    kept = cs._not_stray(points, 0.006, ctx)
+    kept = _not_stray(points, 0.006)
     assert kept[:len(side)].all() and not kept[len(side):].any()
     assert g.arc_coverage(points[kept, :2], 0.0, 0.0) == pytest.approx(0.35)
     assert _false_cans("cluttered table", 12545, [0]) == []
