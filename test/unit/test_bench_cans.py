@@ -24,6 +24,21 @@ def test_stacked_cans_on_one_axis_are_matched_by_their_base_heights():
                      np.eye(4), 0.015)
     assert (tally.found, tally.missed, tally.false) == (2, 0, 0)
     np.testing.assert_allclose(sorted(tally.top_errors), [0.0, 0.001], atol=1e-9)
+    np.testing.assert_allclose(sorted(tally.base_errors), [0.0, 0.001], atol=1e-9)
+
+
+def test_a_can_reported_on_the_wrong_support_is_found_but_counted_base_off():
+    """A can on the table found by its axis and top but reported standing 51 mm up (on an object
+    beside it): found, with its centre error, and counted in the "base off" column; a can whose base
+    is 9 mm off is not."""
+    truth = [{"center": np.array([0.0, 0.0]), "radius": 0.04, "support_height": 0.0, "top": 0.139},
+             {"center": np.array([0.2, 0.0]), "radius": 0.04, "support_height": 0.0, "top": 0.1}]
+    tally = bench_cans.Tally()
+    bench_cans.score(tally, [upright(0.0005, 0.0, 0.051, 0.088), upright(0.2, 0.0, 0.009, 0.091)], truth, [],
+                     np.eye(4), 0.015)
+    assert (tally.found, tally.missed, tally.false) == (2, 0, 0)
+    np.testing.assert_allclose(sorted(tally.base_errors), [0.009, 0.051], atol=1e-9)
+    assert tally.row("x", "can_search", False)[9] == 1
 
 
 def test_a_can_reported_twice_counts_once_and_once_false():
