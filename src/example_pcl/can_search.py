@@ -1049,6 +1049,18 @@ def _support(points, cx, cy, r, base, r_eps, sigma, ctx):
         if (not other.lying and np.hypot(cx - other.center_plane[0], cy - other.center_plane[1]) < other.radius
                 and base - 0.025 - 3 * sigma <= top <= base + 0.005):
             return "can", True, top, ""
+    # A round object claimed before as no can right under it, its circle within that object's (a tin too
+    # wide for a can, claimed with its lid: fresh 12448 of "can on tin", whose front stood as high as the
+    # base), its lid's points around the can at the base's height: it stands on that lid.
+    st = ctx.standing
+    for other in ctx.claimed:
+        if other.hollow or np.hypot(cx - other.cx, cy - other.cy) + r > other.r + r_eps:
+            continue
+        sdist = np.hypot(st[:, 0] - cx, st[:, 1] - cy)
+        lid = ((np.hypot(st[:, 0] - other.cx, st[:, 1] - other.cy) <= other.r + r_eps) & (sdist > r + r_eps)
+               & (st[:, 2] >= base - 0.025 - 3 * sigma) & (st[:, 2] <= base + 0.005))
+        if np.count_nonzero(lid) >= s.min_band_points:
+            return "object", True, _top_layer(st[lid, 2], base, sigma), ""
     # Something in front, as high as the lowest point seen: the base is hidden behind it. Beyond r_eps: its
     # own front's noise is nothing in front of it (fresh 4630 of "cup on can": a cup on a can stood on the
     # table behind itself, and its claim took the can).

@@ -1691,6 +1691,17 @@ def test_a_neighbours_top_beside_a_can_whose_side_goes_on_down_is_no_support():
         assert answer[0] == support and answer[2] == pytest.approx(height, abs=0.002), (support, answer)
 
 
+def test_a_can_on_a_tin_claimed_before_it_stands_on_the_tins_lid():
+    """Fresh 12448 of "can on tin": a can (r 39.5 mm) on a tin too wide for a can (r 92 mm, 69.5 mm
+    high). The tin was judged first and claimed with its lid; the lid gone, nothing lay at the can's
+    base, the tin's front stood as high as it, and the can was reported on the table, its base hidden
+    behind the tin, 163 mm high. It stands on the tin's lid, seen."""
+    truth, can, off = can_nearest_truth("can on tin", 12448, lambda t: t["is_can"])
+    assert off < 0.002 and can.support == "object" and can.base_seen
+    assert can.support_height == pytest.approx(0.0695, abs=0.004)
+    assert can.height == pytest.approx(truth["height"], abs=0.004)
+
+
 def test_a_can_beside_a_tins_rim_stands_on_the_table_not_the_tin():
     """Fresh 11848 of "cluttered table": a can (r 30 mm, 143 mm high) 3 mm from a tin 60 mm high, whose
     rim just outside its circle shifted the bands at its height off it: the side's run started above
