@@ -23,7 +23,8 @@ against the truth's, where a gripper closes on a can from above), base off (gene
 found whose base height is more than 1 cm off their support's: a can reported on the wrong support,
 or with its base inferred on the table while it stands on an object; found by its axis all the
 same) and time per frame (median / p90 ms, real scenes; each scene searched `--repeats` times, the
-two finders alternately). Prints a markdown table and writes it into docs/can_search.md between <!-- bench:cans --> markers.
+two finders alternately). Prints a markdown table and writes it into docs/can_search.md between
+<!-- bench:cans --> markers.
 """
 import argparse
 import dataclasses

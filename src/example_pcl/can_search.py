@@ -83,8 +83,9 @@ class CylinderSearchConfig:
     per wall_cell x wall_cell square seen from above); face_span, face_points: pool points on a straight
     run (seen from above) at least face_span (m) long, of at least face_points points, are a flat face
     (a box's) and anchor no triplet (geometry.flat_faces); when fewer than min_off_faces of the pool
-    lie off them, the pool is drawn again from the points off them; verify: the best so many distinct hypotheses
-    are verified per round, each first refined by refine_rounds linear fits in its slice;
+    lie off them, the pool is drawn again from the points off them; verify: the best so many
+    distinct hypotheses are verified per round, each first refined by refine_rounds linear fits in
+    its slice;
     fit_points: at most this many side points (evenly subsampled) go into the Levenberg-Marquardt
     fit; max_rounds: per cluster. retries,
     retry_verify: when no circle verified in a round makes progress, up to `retries` more draws from
