@@ -39,6 +39,13 @@ def search(objects, **camera):
     return scene, af.find_cans(scene.xyz), to_table
 
 
+def search_context(sensor, standing, rng, **fields):
+    """A can_search._Context in the plane frame (T_sensor_from_plane the identity) with the default
+    configs and nothing found yet: sensor (3,) and standing (float (N, 3)) in m; fields: any other."""
+    return cs._Context(config=af.AutoConfig(), search=cs.CylinderSearchConfig(), T_sensor_from_plane=np.eye(4),
+                       sensor=sensor, standing=standing, rng=rng, found=[], **fields)
+
+
 def table_xy(to_table, can):
     return transforms.apply(to_table, can.base_center)
 
@@ -96,8 +103,7 @@ def test_the_first_draw_ranks_its_circles_on_the_points_off_the_flat_faces(monke
     r_eps = 0.006
     face = g.flat_faces(xy, 0.5 * r_eps, 0.06, 12, rng, radii=RADII)
     assert face[:70].mean() > 0.9 and not face[70:].any()
-    ctx = cs._Context(config=af.AutoConfig(), search=cs.CylinderSearchConfig(), T_sensor_from_plane=np.eye(4),
-                      sensor=np.array([0.0, -0.8, 0.7]), standing=np.c_[xy, z], rng=rng, found=[])
+    ctx = search_context(sensor=np.array([0.0, -0.8, 0.7]), standing=np.c_[xy, z], rng=rng)
     circles = np.array([0.034, -0.08]), np.array([0.039, 0.04]), np.array([0.039, 0.04]), np.array([0.075, 0.075])
     monkeypatch.setattr(cs, "circle_hypotheses", lambda *args, **kwargs: circles)
     cx, cy, r, _, axy, az = next(cs._draws(xy, z, face, np.zeros(len(xy), bool), [], r_eps, ctx))
@@ -1627,9 +1633,8 @@ def test_a_can_beside_a_mug_seen_only_high_up_may_not_reach_into_it():
     (a band under the mug's lowest point seen) may be a can the mug overhangs; one under the mug,
     its centre within the circle, is judged on the heights seen (15 mm shared: may be its support).
     A mug whose far wall was not seen on its circle (only points inside it) keeps no space."""
-    ctx = cs._Context(config=af.AutoConfig(), search=cs.CylinderSearchConfig(), T_sensor_from_plane=np.eye(4),
-                      sensor=np.zeros(3), standing=np.empty((0, 3)), rng=np.random.default_rng(0), found=[],
-                      claimed=[cs._Claim(0.0, 0.0, 0.033, 0.060, 0.100, True, True)])
+    ctx = search_context(sensor=np.zeros(3), standing=np.empty((0, 3)), rng=np.random.default_rng(0),
+                         claimed=[cs._Claim(0.0, 0.0, 0.033, 0.060, 0.100, True, True)])
     assert "into a cup or mug" in cs._inside_cup(0.05, 0.0, 0.032, 0.0, 0.075, 0.006, ctx)
     assert cs._inside_cup(0.05, 0.0, 0.032, 0.0, 0.055, 0.006, ctx) == ""
     assert cs._inside_cup(0.01, 0.0, 0.032, 0.0, 0.075, 0.006, ctx) == ""
@@ -1649,8 +1654,7 @@ def test_a_cup_stands_on_a_narrower_can_whose_near_side_lies_within_r_eps_inside
     can = np.c_[0.0319 * np.cos(angle), 0.0319 * np.sin(angle) - 0.0043, z]
     own = np.c_[0.0398 * np.cos(angle), 0.0398 * np.sin(angle), z] + rng.normal(0, 0.001, (120, 3)) * (1, 1, 0)
     for points, stands in ((can, True), (own, False)):
-        ctx = cs._Context(config=af.AutoConfig(), search=cs.CylinderSearchConfig(), T_sensor_from_plane=np.eye(4),
-                          sensor=np.array([0.0, -0.8, 0.7]), standing=points, rng=rng, found=[])
+        ctx = search_context(sensor=np.array([0.0, -0.8, 0.7]), standing=points, rng=rng)
         support = cs._support(points, 0.0, 0.0, 0.0398, 0.107, 0.006, 0.001, ctx)
         assert (support[0] is not None) == stands, support
 
@@ -1695,8 +1699,7 @@ def test_a_neighbours_top_beside_a_can_whose_side_goes_on_down_is_no_support():
              (np.vstack([upper, tin_top]), 0.072, "object", 0.06),
              (np.vstack([side[z >= 0.04], box_top, box_front]), 0.04, "object", 0.034))
     for points, base, support, height in cases:
-        ctx = cs._Context(config=af.AutoConfig(), search=cs.CylinderSearchConfig(), T_sensor_from_plane=np.eye(4),
-                          sensor=np.array([0.0, -0.8, 0.7]), standing=points, rng=rng, found=[])
+        ctx = search_context(sensor=np.array([0.0, -0.8, 0.7]), standing=points, rng=rng)
         answer = cs._support(points, 0.0, 0.0, 0.03, base, 0.006, 0.001, ctx)
         assert answer[0] == support and answer[2] == pytest.approx(height, abs=0.002), (support, answer)
 
@@ -1729,8 +1732,7 @@ def test_a_lids_side_is_seen_in_the_points_on_its_circles_near_half_under_it():
     angle = np.radians(np.linspace(-160, -20, 29))
     near = np.c_[0.03 * np.cos(angle), 0.03 * np.sin(angle), np.full(29, 0.05)]
     points = np.vstack([near, near * (1, -1, 1), near * (0.5, 0.5, 2.0), near * (1.25, 1.25, 1.0)])
-    ctx = cs._Context(config=af.AutoConfig(), search=cs.CylinderSearchConfig(), T_sensor_from_plane=np.eye(4),
-                      sensor=np.array([0.0, -0.8, 0.7]), standing=points, rng=np.random.default_rng(0), found=[])
+    ctx = search_context(sensor=np.array([0.0, -0.8, 0.7]), standing=points, rng=np.random.default_rng(0))
     np.testing.assert_array_equal(cs._side_seen(points, 0.0, 0.0, 0.03, 0.006, 0.09, ctx), near[:, :2])
     assert len(cs._side_seen(points, 0.0, 0.0, 0.03, 0.006, 0.04, ctx)) == 0
 
@@ -1762,8 +1764,7 @@ def test_points_beyond_the_circle_are_no_far_inner_wall():
                                      (0.004, (0.0, -0.8, 0.6), "points seen through", False)):
         far = np.array([[(r + dr) * np.cos(a), (r + dr) * np.sin(a), 0.07] for a in far_angle])
         points = np.vstack([near, far])
-        ctx = cs._Context(config=af.AutoConfig(), search=cs.CylinderSearchConfig(), T_sensor_from_plane=np.eye(4),
-                          sensor=np.array(sensor), standing=points, rng=np.random.default_rng(0), found=[])
+        ctx = search_context(sensor=np.array(sensor), standing=points, rng=np.random.default_rng(0))
         why, wall_seen = cs._open_top(points, 0.0, 0.0, r, 0.006, 0.0, top, ctx)
         assert (why.startswith("open top") and reason in why) if reason else why == "", (dr, sensor, why)
         assert wall_seen == wall
@@ -1787,9 +1788,8 @@ def test_a_lid_over_a_round_object_claimed_below_it_is_its_top():
     """_top_of_claimed: a lid inside the disc of a round object claimed as no can (r 81 mm, up to 60 mm)
     and less than min_can_height above it is that object's top; beside it, or as high above it as a
     can standing on it would reach, it is not."""
-    ctx = cs._Context(config=af.AutoConfig(), search=cs.CylinderSearchConfig(), T_sensor_from_plane=np.eye(4),
-                      sensor=np.zeros(3), standing=np.empty((0, 3)), rng=np.random.default_rng(0), found=[],
-                      claimed=[cs._Claim(0.07, 0.066, 0.081, 0.016, 0.060, False)])
+    ctx = search_context(sensor=np.zeros(3), standing=np.empty((0, 3)), rng=np.random.default_rng(0),
+                         claimed=[cs._Claim(0.07, 0.066, 0.081, 0.016, 0.060, False)])
     assert cs._top_of_claimed(0.074, 0.054, 0.059, 0.070, 0.006, ctx)
     assert not cs._top_of_claimed(0.074, 0.054, 0.059, 0.060 + ctx.config.min_can_height, 0.006, ctx)
     assert not cs._top_of_claimed(0.2, 0.054, 0.059, 0.070, 0.006, ctx)
@@ -1899,8 +1899,7 @@ def test_a_least_squares_circle_bent_through_a_neighbours_points_is_replaced():
     off = 0.0055 + 0.00042 * (beside + 40)
     neighbour = np.c_[(r + off) * np.cos(np.radians(beside)), (r + off) * np.sin(np.radians(beside))]
     xy = np.r_[arc, neighbour] + rng.normal(0.0, noise, (245, 2))
-    ctx = cs._Context(config=af.AutoConfig(), search=cs.CylinderSearchConfig(), T_sensor_from_plane=np.eye(4),
-                      sensor=np.array([0.0, -0.8, 0.7]), standing=np.zeros((0, 3)), rng=rng, found=[])
+    ctx = search_context(sensor=np.array([0.0, -0.8, 0.7]), standing=np.zeros((0, 3)), rng=rng)
     least = g.fit_circle_geometric(xy, (0.0, 0.0), r, 0.006, max_iterations=50, tol=1e-7, min_inliers=30)
     assert least[2] - r > 0.01 and g.shape_error(xy, *least, 8) > 0.001  # bent, not round
     cx, cy, fitted, cutoff = cs._robust_refit(xy, *least, 0.006, ctx)
@@ -2131,9 +2130,8 @@ def test_the_side_in_the_projectors_shadow_is_hidden():
     seen = np.radians(np.linspace(-150, -20, 40))  # -90 degrees faces the sensor; the limbs at -164.5, -15.5
     side = np.column_stack([r * np.cos(seen), r * np.sin(seen)])
     for projector, hidden in ((None, False), ((0.5, -1.0, 0.5), True), ((-0.5, -1.0, 0.5), False)):
-        ctx = cs._Context(config=af.AutoConfig(), search=cs.CylinderSearchConfig(), T_sensor_from_plane=np.eye(4),
-                          sensor=np.array([0.0, -1.0, 0.5]), standing=np.zeros((0, 3)), rng=np.random.default_rng(0),
-                          found=[], projector=None if projector is None else np.array(projector))
+        ctx = search_context(sensor=np.array([0.0, -1.0, 0.5]), standing=np.zeros((0, 3)),
+                             rng=np.random.default_rng(0), projector=None if projector is None else np.array(projector))
         assert cs._rest_hidden(side, 0.0, 0.0, r, 0.006, 0.02, 0.1, ctx) == hidden, projector
 
 
@@ -2285,8 +2283,7 @@ def test_a_lid_beside_a_top_as_high_apart_from_it_is_a_piece_of_its_own():
 
 def _not_stray(points, r_eps):
     """can_search._not_stray of points (float (N, 3), plane frame, m) seen from 0.8 m toward -y, 0.6 m up."""
-    ctx = cs._Context(config=af.AutoConfig(), search=cs.CylinderSearchConfig(), T_sensor_from_plane=np.eye(4),
-                      sensor=np.array([0.0, -0.8, 0.6]), standing=points, rng=np.random.default_rng(0), found=[])
+    ctx = search_context(sensor=np.array([0.0, -0.8, 0.6]), standing=points, rng=np.random.default_rng(0))
     return cs._not_stray(points, r_eps, ctx)
 
 
