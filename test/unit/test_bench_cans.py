@@ -14,14 +14,23 @@ def upright(x, y, base_height, height):
                            height=height, lying=False)
 
 
+def true_can(x, radius, support_height, top):
+    """A generated upright can's truth as score takes it, centred at (x, 0) (m)."""
+    return {"center": np.array([x, 0.0]), "radius": radius, "support_height": support_height, "top": top}
+
+
+def scored(found, truth):
+    """The Tally of found upright cans scored against the truth (plane frame, match 15 mm)."""
+    tally = bench_cans.Tally()
+    bench_cans.score(tally, found, truth, [], np.eye(4), 0.015)
+    return tally
+
+
 def test_stacked_cans_on_one_axis_are_matched_by_their_base_heights():
     """A can on a can: both found on nearly one axis. The upper one, scored first, lies horizontally
     nearer the lower truth; matched by the base's height too, each found can is its own truth's."""
-    truth = [{"center": np.array([0.0, 0.0]), "radius": 0.04, "support_height": 0.0, "top": 0.09},
-             {"center": np.array([0.001, 0.0]), "radius": 0.03, "support_height": 0.09, "top": 0.2}]
-    tally = bench_cans.Tally()
-    bench_cans.score(tally, [upright(0.0002, 0.0, 0.089, 0.11), upright(0.0, 0.0, 0.0, 0.09)], truth, [],
-                     np.eye(4), 0.015)
+    truth = [true_can(0.0, 0.04, 0.0, 0.09), true_can(0.001, 0.03, 0.09, 0.2)]
+    tally = scored([upright(0.0002, 0.0, 0.089, 0.11), upright(0.0, 0.0, 0.0, 0.09)], truth)
     assert (tally.found, tally.missed, tally.false) == (2, 0, 0)
     np.testing.assert_allclose(sorted(tally.top_errors), [0.0, 0.001], atol=1e-9)
     np.testing.assert_allclose(sorted(tally.base_errors), [0.0, 0.001], atol=1e-9)
@@ -31,20 +40,15 @@ def test_a_can_reported_on_the_wrong_support_is_found_but_counted_base_off():
     """A can on the table found by its axis and top but reported standing 51 mm up (on an object
     beside it): found, with its centre error, and counted in the "base off" column; a can whose base
     is 9 mm off is not."""
-    truth = [{"center": np.array([0.0, 0.0]), "radius": 0.04, "support_height": 0.0, "top": 0.139},
-             {"center": np.array([0.2, 0.0]), "radius": 0.04, "support_height": 0.0, "top": 0.1}]
-    tally = bench_cans.Tally()
-    bench_cans.score(tally, [upright(0.0005, 0.0, 0.051, 0.088), upright(0.2, 0.0, 0.009, 0.091)], truth, [],
-                     np.eye(4), 0.015)
+    truth = [true_can(0.0, 0.04, 0.0, 0.139), true_can(0.2, 0.04, 0.0, 0.1)]
+    tally = scored([upright(0.0005, 0.0, 0.051, 0.088), upright(0.2, 0.0, 0.009, 0.091)], truth)
     assert (tally.found, tally.missed, tally.false) == (2, 0, 0)
     np.testing.assert_allclose(sorted(tally.base_errors), [0.009, 0.051], atol=1e-9)
     assert tally.row("x", "can_search", False)[9] == 1
 
 
 def test_a_can_reported_twice_counts_once_and_once_false():
-    truth = [{"center": np.array([0.0, 0.0]), "radius": 0.04, "support_height": 0.0, "top": 0.1}]
-    tally = bench_cans.Tally()
-    bench_cans.score(tally, [upright(0.0, 0.0, 0.0, 0.1), upright(0.001, 0.0, 0.0, 0.1)], truth, [], np.eye(4), 0.015)
+    tally = scored([upright(0.0, 0.0, 0.0, 0.1), upright(0.001, 0.0, 0.0, 0.1)], [true_can(0.0, 0.04, 0.0, 0.1)])
     assert (tally.found, tally.missed, tally.false) == (1, 0, 1)
 
 
