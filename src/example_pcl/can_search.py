@@ -82,10 +82,8 @@ class CylinderSearchConfig:
     pool_points: at most this many points score them, drawn with weights that favour walls (points
     per wall_cell x wall_cell square seen from above); face_span, face_points: pool points on a straight
     run (seen from above) at least face_span (m) long, of at least face_points points, are a flat face
-    (a box's) and anchor no triplet (geometry.flat_faces); when fewer than min_off_faces of the pool
-    lie off them, the pool is drawn again from the points off them; verify: the best so many
-    distinct hypotheses are verified per round, each first refined by refine_rounds linear fits in
-    its slice;
+    (a box's) and anchor no triplet (geometry.flat_faces); verify: the best so many distinct hypotheses
+    are verified per round, each first refined by refine_rounds linear fits in its slice;
     fit_points: at most this many side points (evenly subsampled) go into the Levenberg-Marquardt
     fit; max_rounds: per cluster. retries,
     retry_verify: when no circle verified in a round makes progress, up to `retries` more draws from
@@ -161,7 +159,6 @@ class CylinderSearchConfig:
     wall_cell: float = 0.005
     face_span: float = 0.06
     face_points: int = 12
-    min_off_faces: float = 0.25
     verify: int = 2
     fit_points: int = 250
     max_rounds: int = 6
@@ -1499,16 +1496,7 @@ def _rounds(points, bands, free, cans, rejections, ctx):
         tried_circles = []
         # No triplet from a box's or prism's flat faces: circles through their corners outscored a small
         # can beside a big box and took the round's verifications.
-        radii = (c.min_radius, c.max_radius)
-        face, runs = g.flat_faces(xy, 0.5 * r_eps, s.face_span, s.face_points, ctx.rng, radii=radii, lines=True)
-        if np.count_nonzero(~face) < s.min_off_faces * len(pool):
-            # A big box's faces drew most of the pool, and a can beside it may have kept too few points in
-            # it for a triplet (fresh 12718 of "can touching box": 5 of 200): drawn again off those faces.
-            off = np.flatnonzero(~g.on_faces(this_round.points[:, :2], runs, 0.5 * r_eps))
-            if len(off) >= c.min_fit_points:
-                pool = off[_wall_sample(this_round.points[off], s.pool_points, s.wall_cell, ctx.rng)]
-                xy, z_pool, tried = this_round.points[pool, :2], this_round.z[pool], np.zeros(len(pool), bool)
-                face = g.flat_faces(xy, 0.5 * r_eps, s.face_span, s.face_points, ctx.rng, radii=radii)
+        face = g.flat_faces(xy, 0.5 * r_eps, s.face_span, s.face_points, ctx.rng, radii=(c.min_radius, c.max_radius))
         for attempt, (cx, cy, r, z0, axy, az) in enumerate(_draws(xy, z_pool, face, tried, tried_circles, r_eps, ctx)):
             best = best_circles(axy, cx, cy, r, r_eps, s.verify if attempt == 0 else s.retry_verify,
                                 sensor=ctx.sensor, z=az, lid=s.band_height)
