@@ -1020,8 +1020,7 @@ def _support(points, cx, cy, r, base, r_eps, sigma, ctx):
     ahead = rel @ front  # > 0 toward the sensor
     z = points[:, 2]
     # A surface at the base's height around the can, not only in front of it: it reaches under it.
-    level = ((z >= base - 0.025 - 3 * sigma) & (z <= base + 0.005) & (dist > r + r_eps)
-             & (dist <= r + s.support_reach))
+    level = _at_base(z, base, sigma) & (dist > r + r_eps) & (dist <= r + s.support_reach)
     beside = level & (ahead < 0.5 * r)
     # Or something right under it, narrower than it (the can a wider cup stands on); not the can's own
     # side going on below the run, where an object in front hides most of it. Only r_eps / 2 inside the
@@ -1047,25 +1046,23 @@ def _support(points, cx, cy, r, base, r_eps, sigma, ctx):
     for other in ctx.found:
         top = other.support_height + other.height
         if (not other.lying and np.hypot(cx - other.center_plane[0], cy - other.center_plane[1]) < other.radius
-                and base - 0.025 - 3 * sigma <= top <= base + 0.005):
+                and _at_base(top, base, sigma)):
             return "can", True, top, ""
     # A round object claimed before as no can right under it, its circle within that object's (a tin too
     # wide for a can, claimed with its lid: fresh 12448 of "can on tin", whose front stood as high as the
     # base), its lid's points around the can at the base's height: it stands on that lid.
     st = ctx.standing
+    srel = st[:, :2] - (cx, cy)
     for other in ctx.claimed:
         if other.hollow or np.hypot(cx - other.cx, cy - other.cy) + r > other.r + r_eps:
             continue
-        sdist = np.hypot(st[:, 0] - cx, st[:, 1] - cy)
-        lid = ((np.hypot(st[:, 0] - other.cx, st[:, 1] - other.cy) <= other.r + r_eps) & (sdist > r + r_eps)
-               & (st[:, 2] >= base - 0.025 - 3 * sigma) & (st[:, 2] <= base + 0.005))
+        lid = ((np.hypot(st[:, 0] - other.cx, st[:, 1] - other.cy) <= other.r + r_eps)
+               & (np.hypot(srel[:, 0], srel[:, 1]) > r + r_eps) & _at_base(st[:, 2], base, sigma))
         if np.count_nonzero(lid) >= s.min_band_points:
             return "object", True, _top_layer(st[lid, 2], base, sigma), ""
     # Something in front, as high as the lowest point seen: the base is hidden behind it. Beyond r_eps: its
     # own front's noise is nothing in front of it (fresh 4630 of "cup on can": a cup on a can stood on the
     # table behind itself, and its claim took the can).
-    st = ctx.standing
-    srel = st[:, :2] - (cx, cy)
     sahead = srel @ front
     lateral = np.abs(srel[:, 0] * front[1] - srel[:, 1] * front[0])
     occluder = (sahead > r + r_eps) & (sahead < r + s.occluder_reach) & (lateral < r) & (st[:, 2] >= base - 0.02)
@@ -1081,6 +1078,12 @@ def _support(points, cx, cy, r, base, r_eps, sigma, ctx):
         return "table", True, 0.0, ""
     return None, False, base, (f"its lowest side point is {100 * base:.1f} cm above the table with nothing "
                                "under it (floats)")
+
+
+def _at_base(z, base, sigma):
+    """Whether heights z (m; array or scalar) lie at a base's height (m): from 25 mm (and 3 sigma)
+    under it, where a support's top may lie below the lowest side point seen, to 5 mm over it."""
+    return (z >= base - 0.025 - 3 * sigma) & (z <= base + 0.005)
 
 
 def _side_goes_on_down(points, dist, cx, cy, r, below, r_eps, ctx):
