@@ -9,7 +9,8 @@ and measured figures are in docs/can_search.md; in short, per cluster and round:
    an anchor and two points within the diameter of a can of a radius drawn per anchor), radius
    within [min_radius, max_radius], from a pool drawn with weights that favour walls (a side piles
    many points into one ``wall_cell`` square seen from above, a lid one layer), but none on a box's
-   flat faces (long straight runs seen from above). The ones with most pool points off those faces
+   flat faces (long straight runs seen from above; when they took the pool and its circles failed,
+   a second pool off them). The ones with most pool points off those faces
    within r_eps on their half facing the sensor (less those inside the circle at its side's
    heights) are verified, best first, each sharing at most half its points with one taken before
    (circles through one box face count once).
@@ -82,8 +83,10 @@ class CylinderSearchConfig:
     pool_points: at most this many points score them, drawn with weights that favour walls (points
     per wall_cell x wall_cell square seen from above); face_span, face_points: pool points on a straight
     run (seen from above) at least face_span (m) long, of at least face_points points, are a flat face
-    (a box's) and anchor no triplet (geometry.flat_faces); verify: the best so many distinct hypotheses
-    are verified per round, each first refined by refine_rounds linear fits in its slice;
+    (a box's) and anchor no triplet (geometry.flat_faces); when fewer than min_off_faces of the pool
+    lie off them and its hypotheses fail, a pool is drawn off them (_pools); verify: the best so many
+    distinct hypotheses are verified per round, each first refined by refine_rounds linear fits in
+    its slice;
     fit_points: at most this many side points (evenly subsampled) go into the Levenberg-Marquardt
     fit; max_rounds: per cluster. retries,
     retry_verify: when no circle verified in a round makes progress, up to `retries` more draws from
@@ -159,6 +162,7 @@ class CylinderSearchConfig:
     wall_cell: float = 0.005
     face_span: float = 0.06
     face_points: int = 12
+    min_off_faces: float = 0.25
     verify: int = 2
     fit_points: int = 250
     max_rounds: int = 6
@@ -1490,52 +1494,78 @@ def _rounds(points, bands, free, cans, rejections, ctx):
         if len(idx) < c.min_fit_points:
             break
         this_round = _Free(points, bands, idx)
-        pool = _wall_sample(this_round.points, s.pool_points, s.wall_cell, ctx.rng)
-        xy = this_round.points[pool, :2]
-        sigma = _sigma(ctx, this_round.points[pool].mean(axis=0))
-        r_eps = max(c.r_eps, c.r_eps_sigmas * sigma)
-        z_pool = this_round.z[pool]
-        progress, tried = False, np.zeros(len(pool), bool)
-        tried_circles = []
-        # No triplet from a box's or prism's flat faces: circles through their corners outscored a small
-        # can beside a big box and took the round's verifications.
-        face = g.flat_faces(xy, 0.5 * r_eps, s.face_span, s.face_points, ctx.rng, radii=(c.min_radius, c.max_radius))
-        for attempt, (cx, cy, r, z0, axy, az) in enumerate(_draws(xy, z_pool, face, tried, tried_circles, r_eps, ctx)):
-            best = best_circles(axy, cx, cy, r, r_eps, s.verify if attempt == 0 else s.retry_verify,
-                                sensor=ctx.sensor, z=az, lid=s.band_height)
-            if not best:
-                if attempt == 0:
-                    last = last or ("no circle of a can's radius through its points", None)
-                    break
-                continue
-            # A circle through a lid or a box's top has its points at one height: no side, not verified.
-            candidates = [(cx[k], cy[k], r[k], z0[k]) for k in best
-                          if np.ptp(az[np.abs(np.hypot(axy[:, 0] - cx[k], axy[:, 1] - cy[k]) - r[k]) <= r_eps])
-                          >= 0.5 * c.min_can_height]
-            for cx0, cy0, r0, h0 in candidates:
-                can, reason, claim = verify(this_round, cx0, cy0, r0, ctx, h0)
-                if can is not None:
-                    cans.append(can)
-                    ctx.found.append(can)
-                    free[can.indices] = False
-                    progress = True
-                    break
-                if claim is not None and len(claim):
-                    # A round object that is no can (a tin, a cup): named, and not tried again.
-                    rejections.append(Rejection(centroid=points[claim].mean(axis=0), n_points=len(claim),
-                                                reason=reason, radius=r0))
-                    free[claim] = False
-                    progress = True
-                    break
-                if last is None:
-                    last = (reason, r0)
-                tried |= np.abs(np.hypot(xy[:, 0] - cx0, xy[:, 1] - cy0) - r0) <= r_eps
-                tried_circles.append((cx0, cy0, r0))
+        progress = False
+        for xy, z_pool, face, r_eps in _pools(this_round, ctx):
+            progress, failed = _verify_draws(points, this_round, xy, z_pool, face, r_eps, free, cans, rejections, ctx)
+            last = last or failed
             if progress:
                 break
         if not progress:
             break
     return last
+
+
+def _pools(this_round, ctx):
+    """The pools a round draws its circle hypotheses from, in turn while none yields a can or a claim:
+    (x, y and heights of the pool points, m, plane frame; which lie on a flat face; r_eps, m). First
+    one drawn with weights that favour walls; then, when a big box's faces took most of it (fewer
+    than min_off_faces off them), one drawn off those faces: a can touching the box may have kept too
+    few points in the first for a triplet (fresh 12718 of "can touching box": 5 of 200). Only when the
+    first failed: drawn instead of it, the redraw lost a can whose front lies in line with the box's
+    face (fresh 13043)."""
+    c, s = ctx.config, ctx.search
+    pool = _wall_sample(this_round.points, s.pool_points, s.wall_cell, ctx.rng)
+    r_eps = max(c.r_eps, c.r_eps_sigmas * _sigma(ctx, this_round.points[pool].mean(axis=0)))
+    radii = (c.min_radius, c.max_radius)
+    # No triplet from a box's or prism's flat faces: circles through their corners outscored a small
+    # can beside a big box and took the round's verifications.
+    xy = this_round.points[pool, :2]
+    face, runs = g.flat_faces(xy, 0.5 * r_eps, s.face_span, s.face_points, ctx.rng, radii=radii, lines=True)
+    yield xy, this_round.z[pool], face, r_eps
+    if np.count_nonzero(~face) >= s.min_off_faces * len(pool):
+        return
+    off = np.flatnonzero(~g.on_faces(this_round.points[:, :2], runs, 0.5 * r_eps))
+    if len(off) < c.min_fit_points:
+        return
+    pool = off[_wall_sample(this_round.points[off], s.pool_points, s.wall_cell, ctx.rng)]
+    xy = this_round.points[pool, :2]
+    yield xy, this_round.z[pool], g.flat_faces(xy, 0.5 * r_eps, s.face_span, s.face_points, ctx.rng, radii=radii), r_eps
+
+
+def _verify_draws(points, this_round, xy, z_pool, face, r_eps, free, cans, rejections, ctx):
+    """One pool's circle hypotheses (_draws) verified in turn until one yields a can or a claimed
+    round object (appended to cans or rejections, its points taken from free). Returns (whether one
+    did, (reason, radius) of the first that failed or None)."""
+    c, s = ctx.config, ctx.search
+    tried, tried_circles, failed = np.zeros(len(xy), bool), [], None
+    for attempt, (cx, cy, r, z0, axy, az) in enumerate(_draws(xy, z_pool, face, tried, tried_circles, r_eps, ctx)):
+        best = best_circles(axy, cx, cy, r, r_eps, s.verify if attempt == 0 else s.retry_verify,
+                            sensor=ctx.sensor, z=az, lid=s.band_height)
+        if not best:
+            if attempt == 0:
+                return False, ("no circle of a can's radius through its points", None)
+            continue
+        # A circle through a lid or a box's top has its points at one height: no side, not verified.
+        candidates = [(cx[k], cy[k], r[k], z0[k]) for k in best
+                      if np.ptp(az[np.abs(np.hypot(axy[:, 0] - cx[k], axy[:, 1] - cy[k]) - r[k]) <= r_eps])
+                      >= 0.5 * c.min_can_height]
+        for cx0, cy0, r0, h0 in candidates:
+            can, reason, claim = verify(this_round, cx0, cy0, r0, ctx, h0)
+            if can is not None:
+                cans.append(can)
+                ctx.found.append(can)
+                free[can.indices] = False
+                return True, failed
+            if claim is not None and len(claim):
+                # A round object that is no can (a tin, a cup): named, and not tried again.
+                rejections.append(Rejection(centroid=points[claim].mean(axis=0), n_points=len(claim),
+                                            reason=reason, radius=r0))
+                free[claim] = False
+                return True, failed
+            failed = failed or (reason, r0)
+            tried |= np.abs(np.hypot(xy[:, 0] - cx0, xy[:, 1] - cy0) - r0) <= r_eps
+            tried_circles.append((cx0, cy0, r0))
+    return False, failed
 
 
 def _lid_only(free, ctx):

@@ -791,14 +791,17 @@ def line_ratio(xy, cx, cy, radius):
     return float(line / circle) if circle > 0 else float("inf")
 
 
-def flat_faces(xy, eps, min_span, min_points, rng, tries=32, max_faces=3, max_gap=0.02, *, radii):
+def flat_faces(xy, eps, min_span, min_points, rng, tries=32, max_faces=3, max_gap=0.02, *, radii, lines=False):
     """Which of the points xy (float64 (M, 2), m, seen from above) lie on a flat vertical face (a box's
     or prism's): within eps of a line, a run along it at least min_span (m) long with no gap over
     max_gap (m), of at least min_points points. Up to max_faces lines, each the best of `tries`
     drawn through two points. A can's side is no such run: a line stays within eps of a circle of
     radius r over 2 sqrt(2 r eps) only (44 mm for r = 80 mm, eps = 3 mm); nor part of one, a can's
-    front in line with a face past its end (_without_tangent_ends; radii (m): a can's, min and max)."""
+    front in line with a face past its end (_without_tangent_ends; radii (m): a can's, min and max).
+    With lines=True: (which, the faces' runs: (point on the line, unit direction, from, to: m along
+    it from the point) each, for on_faces)."""
     face = np.zeros(len(xy), bool)
+    runs = []
     for _ in range(max_faces):
         rest = np.flatnonzero(~face)
         if len(rest) < max(min_points, 2):
@@ -828,8 +831,27 @@ def flat_faces(xy, eps, min_span, min_points, rng, tries=32, max_faces=3, max_ga
                                        (xy[rest], rest_along, off[best]))
         if along[hi] - along[lo] < min_span or hi - lo + 1 < min_points:
             break
-        face[rest[on[order[lo:hi + 1]]]] = True
-    return face
+        run = rest[on[order[lo:hi + 1]]]
+        face[run] = True
+        if lines:
+            # The run's own line (the one drawn through two noisy points tilts off it toward the ends).
+            centre = xy[run].mean(axis=0)
+            direction = np.linalg.eigh(np.cov((xy[run] - centre).T))[1][:, 1]
+            along_run = (xy[run] - centre) @ direction
+            runs.append((centre, direction, along_run.min(), along_run.max()))
+    return (face, runs) if lines else face
+
+
+def on_faces(xy, runs, eps):
+    """Which of the points xy (float64 (M, 2), m, seen from above) lie within eps (m) of one of the
+    faces' runs (flat_faces' with lines=True), between its ends."""
+    on = np.zeros(len(xy), bool)
+    for point, direction, start, end in runs:
+        rel = xy - point
+        along = rel @ direction
+        off = np.abs(rel[:, 0] * direction[1] - rel[:, 1] * direction[0])
+        on |= (off <= eps) & (along >= start - eps) & (along <= end + eps)
+    return on
 
 
 def _without_tangent_ends(along, lo, hi, min_span, gap, radii, nearby, reach=0.01, min_points=6, min_bend=1.5):

@@ -249,6 +249,25 @@ def can_nearest_truth(case, seed, pick):
     return truth, cans[k], off[k]
 
 
+def test_a_can_whose_pool_points_a_big_boxs_faces_crowd_out_is_found():
+    """Fresh 12718 of "can touching box": a can (r 35.5 mm) touching a box 16 cm wide, whose faces
+    drew 190 of the 200 pool points; the can kept 5 of them, no triplet on it, "nothing round left".
+    The pool drawn again off the faces finds it, on the table, its full height."""
+    truth, can, off = can_nearest_truth("can touching box", 12718, lambda t: t["is_can"])
+    assert off < 0.002 and can.support == "table" and can.base_seen
+    assert can.radius == pytest.approx(truth["radius"], abs=0.001)
+    assert can.height == pytest.approx(truth["height"], abs=0.004)
+
+
+def test_a_can_whose_front_lies_in_line_with_the_face_of_the_box_it_touches_is_found():
+    """Fresh 13043 of "can touching box": the can's front lies in line with the box's face. A pool
+    drawn off the faces' runs instead of the first lost it (the can's front went with the face; the
+    circles left ran through box and can): that pool is drawn only when the first one fails."""
+    truth, can, off = can_nearest_truth("can touching box", 13043, lambda t: t["is_can"])
+    assert off < 0.002 and can.support == "table" and can.base_seen
+    assert can.height == pytest.approx(truth["height"], abs=0.004)
+
+
 def test_two_touching_half_hidden_cans_are_not_the_wide_circle_tangent_to_both():
     """Fresh 4316 of "cluttered table": two touching cans, their near halves partly hidden, and a wider
     circle tangent to both fronts (r 53 mm, seen over 1.76 rad) was a can, and neither can found. Both

@@ -956,6 +956,22 @@ def test_flat_faces_finds_a_box_face_and_not_a_can_side():
     assert not found[60:].any()
 
 
+def test_on_faces_takes_the_points_near_a_faces_run_between_its_ends():
+    """flat_faces' runs (lines=True) find every point of the face, also those it was not drawn
+    among (a pool drawn again off the faces: fresh 12718 of "can touching box"), and none of a can's
+    side beside it nor of the face's line beyond the run's ends."""
+    rng = np.random.default_rng(3)
+    face = np.c_[np.linspace(0.0, 0.1, 60), np.full(60, 0.2)] + rng.normal(0, 0.0007, (60, 2))
+    angle = np.linspace(0.2, np.pi - 0.2, 60)
+    side = np.c_[0.16 + 0.03 * np.cos(angle), 0.2 - 0.03 * np.sin(angle)]
+    found, runs = g.flat_faces(np.concatenate([face, side]), 0.003, 0.06, 12, rng, radii=RADII, lines=True)
+    assert len(runs) == 1 and found[:60].mean() > 0.9
+    more = np.c_[rng.uniform(0.0, 0.1, 200), np.full(200, 0.2)] + rng.normal(0, 0.0007, (200, 2))
+    assert g.on_faces(more, runs, 0.003).all()
+    beyond = np.c_[np.linspace(0.11, 0.2, 20), np.full(20, 0.2)]
+    assert not g.on_faces(np.concatenate([side, beyond]), runs, 0.003).any()
+
+
 def test_a_can_front_in_line_with_a_box_face_past_its_end_is_no_part_of_the_face():
     """A box's face (8 cm) and, 16 mm past its end, the front of a can of r 29 mm tangent to its line
     (fresh 4134 of "can touching box"): the face is flat, the can's front is not. A face with a gap of
