@@ -41,7 +41,8 @@ and measured figures are in docs/can_search.md; in short, per cluster and round:
    and the wall beside it) - two objects do not share space. Under another: a side on the circle
    of a round object named before that ends where it starts - its lower part.
 6. The can's points are taken out of the cluster and the next round looks for another one. When
-   none is found, a can seen by its lid alone (or a cup by its rim), and the rounds again.
+   none is found, a can seen by its lid alone (or a cup by its rim), and the rounds again. A round
+   object named in one cluster takes its points in the others (searched again when before it).
 
 Speed: a verification looks only at the free points near its circle (cropped per round from the
 cluster's, height bands computed once per cluster), fits by geometry.fit_circles_algebraic and
@@ -1407,15 +1408,24 @@ def _draws(xy, z_pool, face, tried, tried_circles, r_eps, ctx):
     yield (*(a[keep] for a in first), xy[~face], z_pool[~face])
 
 
-def search_cluster(points, ctx):
+def search_cluster(points, ctx, claimed_elsewhere=()):
     """Every can in one cluster: (list of Can with indices into `points`, list of Rejection).
 
-    points: float64 (M, 3), plane frame (m)."""
+    points: float64 (M, 3), plane frame (m); claimed_elsewhere: the round objects (_Claim) claimed as
+    no can in other clusters."""
     c, s = ctx.config, ctx.search
     # Height bands, once per cluster (points above max_height share the last band).
     bands = np.minimum((points[:, 2] / s.band_height).astype(np.int64), int(c.max_height / s.band_height))
     free = np.ones(len(points), bool)
     cans, rejections, last = [], [], None
+    # A round object claimed in a cluster before may go on in this one (a cup touching a can, split
+    # between the can's cluster and its own: fresh 13116 of "cluttered table"); its points there
+    # crowd the can's side beside it and bend its circle ("not round").
+    elsewhere = _on_claimed(points, ctx, claimed_elsewhere)
+    if np.count_nonzero(elsewhere) >= c.min_fit_points:
+        free &= ~elsewhere
+        rejections.append(Rejection(centroid=points[elsewhere].mean(axis=0), n_points=int(np.count_nonzero(elsewhere)),
+                                    reason="part of a round object that is no can, claimed in another cluster"))
     # Lying cans first: an upright hypothesis through a lying can and what touches it could take its
     # points as a round object that is no can, or make a box's corner beside it look round.
     lying_cans, lying_why = _lying(points, np.arange(len(points)), ctx) if len(points) >= c.min_fit_points else ([], "")
@@ -1480,6 +1490,20 @@ def search_cluster(points, ctx):
         rejections.append(Rejection(centroid=points[rest].mean(axis=0) if len(rest) else points.mean(axis=0),
                                     n_points=len(rest), reason=reason, radius=radius))
     return cans, rejections
+
+
+def _on_claimed(points, ctx, claimed):
+    """Which of a cluster's points (float64 (M, 3), plane frame, m) lie in the disc of one of the round
+    objects claimed as no can (_Claim; r_eps about its circle), from a band under its lowest point
+    claimed to its highest. Only those of a can's radius: a circle of r 234 mm claimed over a box's
+    faces ("radius outside") took a can 83 mm from its centre (development 6 of the cluttered table)."""
+    c, s = ctx.config, ctx.search
+    on = np.zeros(len(points), bool)
+    for other in (o for o in claimed if c.min_radius <= o.r <= c.max_radius):
+        r_eps = max(c.r_eps, c.r_eps_sigmas * _sigma(ctx, (other.cx, other.cy, other.z_hi)))
+        on |= ((np.hypot(points[:, 0] - other.cx, points[:, 1] - other.cy) <= other.r + r_eps)
+               & (points[:, 2] >= other.z_lo - s.band_height) & (points[:, 2] <= other.z_hi))
+    return on
 
 
 def _rounds(points, bands, free, cans, rejections, ctx):
@@ -2086,13 +2110,24 @@ def search(clusters, standing, T_sensor_from_plane, sensor_plane, config, ray_an
                    ray_angle=float(ray_angle),
                    image_edge=np.zeros((0, 3)) if image_edge is None else np.asarray(image_edge, dtype=float),
                    projector=projector, beyond_image=beyond_image)
-    cans, rejections = [], []
+    cans, rejections, own = [], {}, []
     # Lowest clusters first is not needed: a stacked can's support is in its own cluster.
     for k, points in enumerate(clusters):
-        h, rej = search_cluster(points, ctx)
+        before = len(ctx.claimed)
+        h, rejections[k] = search_cluster(points, ctx, ctx.claimed[:before])
         cans += [(k, can) for can in h]
-        rejections += [(k, rj) for rj in rej]
-    return _join_lying(cans, ctx), rejections
+        own.append((ctx.claimed[before:], before))
+    # A round object claimed in a later cluster may go on in one searched before it where no can was
+    # found (the cup of fresh 13116 split between its cluster and a can's): that one is searched again
+    # without it (and without its own claims, made again).
+    with_cans = {k for k, _ in cans}
+    again = [k for k, (mine, before) in enumerate(own) if k not in with_cans and np.count_nonzero(
+        _on_claimed(clusters[k], ctx, ctx.claimed[before + len(mine):])) >= config.min_fit_points]
+    for k in again:
+        ctx.claimed[:] = [o for o in ctx.claimed if not any(o is m for m in own[k][0])]
+        h, rejections[k] = search_cluster(clusters[k], ctx, list(ctx.claimed))
+        cans += [(k, can) for can in h]
+    return _join_lying(cans, ctx), [(k, rj) for k in sorted(rejections) for rj in rejections[k]]
 
 
 def _join_lying(cans, ctx):
