@@ -17,7 +17,8 @@ and measured figures are in docs/can_search.md; in short, per cluster and round:
 2. **Grow along the axis.** The points are split into height bands (``band_height``); starting
    from the band where the circle holds most points, the run of bands grows down and up while
    each band still has points on the circle (at least ``band_fraction`` of the start band's) and
-   no more inside the disc than on it. The can spans that run; its top is the lid above it.
+   no more inside the disc than on it, but not past a surface crowded around the circle (a box's
+   top under the can). The can spans that run; its top is the lid above it.
 3. **Fit and side criterion.** Levenberg-Marquardt (geometry.fit_cylinder) on the run's points
    on the circle, refitted by Tukey's biweight when that finds another surface's points among them
    (a box or can touching it; _robust_refit), then auto_finder's criterion: radius, inlier
@@ -502,10 +503,21 @@ def verify(free, cx, cy, r, ctx, z0=None, again=True, rim=False, split=True):
     lo, hi = run
     # A surface the can stands on (a tin's lid, a box's top) adds a band crowded with points on
     # the circle and beyond it: the side starts above it.
-    band_out = np.bincount(bands[(dist > r + r_eps) & (dist <= r + s.support_reach)], minlength=nb)
+    ring = (dist > r + r_eps) & (dist <= r + s.support_reach)
+    band_out = np.bincount(bands[ring], minlength=nb)
     crowded = 1.3 * _percentile(band_on[lo:hi + 1], 50)
     while lo < hi and band_on[lo] > crowded and band_out[lo] >= 0.3 * band_on[lo]:
         lo += 1
+    # So does a band the run bridged with no side on the circle and a surface around it (a box's top
+    # around the can standing on it; below, the box's face the can overhangs by 4 mm, near its circle:
+    # fresh 13218 of "can on box", a can 131 mm high on a box 58 mm high taken from the table): crowded
+    # beyond the circle, over at least half of it (4.7 rad there; a box's top touching a can's side
+    # beside it, 1.2 rad: fresh 13141 of "can touching box").
+    need = max(s.min_band_points, s.band_fraction * band_on[lo:hi + 1].max())
+    crowd = 2 * _percentile(band_on[lo:hi + 1], 50)
+    surface = [k for k in range(lo + 1, hi) if band_on[k] < need and band_out[k] >= crowd
+               and g.arc_coverage(pts[ring & (bands == k), :2], cx, cy) >= np.pi]
+    lo = surface[-1] + 1 if surface else lo
     z_lo, z_hi = lo * s.band_height, (hi + 1) * s.band_height
     # The side ends top_margin (and 3 sigma) below the lid, so the lid's rim is no side point.
     top = _lid(dist, z, r, r_eps, z_lo, z_hi, s)

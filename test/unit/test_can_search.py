@@ -283,6 +283,26 @@ def test_a_can_beside_a_cup_split_between_its_cluster_and_its_own_is_found(monke
     assert can.radius == pytest.approx(truth["radius"], abs=0.001)
 
 
+def test_a_can_on_a_box_whose_corner_lies_under_its_circle_stands_on_the_box():
+    """Fresh 13218 of "can on box": the face of the box under the can, 4 mm inside its circle, lay
+    near it (20 points a band, the side 42), and the run bridged the band of the box's top (no side
+    on the circle, 131 points around it): a can 191 mm high from the table. The side starts above
+    that surface."""
+    truth, can, off = can_nearest_truth("can on box", 13218, lambda t: t["is_can"])
+    assert off < 0.002 and can.support == "object" and can.base_seen
+    assert can.support_height == pytest.approx(truth["support_height"], abs=0.005)
+    assert can.height == pytest.approx(truth["height"], abs=0.005)
+
+
+def test_a_box_top_touching_a_cans_side_is_no_surface_it_stands_on():
+    """Fresh 13141 of "can touching box": the top of the box touching the can, 110-120 mm up, leaves
+    a band with no side on the circle and crowded beside it (184 points) over 1.2 rad only: no
+    surface around the can. It stands on the table, its full height (150 mm)."""
+    truth, can, off = can_nearest_truth("can touching box", 13141, lambda t: t["is_can"])
+    assert off < 0.002 and can.support == "table" and can.base_seen
+    assert can.height == pytest.approx(truth["height"], abs=0.005)
+
+
 def test_two_touching_half_hidden_cans_are_not_the_wide_circle_tangent_to_both():
     """Fresh 4316 of "cluttered table": two touching cans, their near halves partly hidden, and a wider
     circle tangent to both fronts (r 53 mm, seen over 1.76 rad) was a can, and neither can found. Both
