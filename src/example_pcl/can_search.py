@@ -1430,7 +1430,7 @@ def search_cluster(points, ctx, claimed_elsewhere=()):
     bands = np.minimum((points[:, 2] / s.band_height).astype(np.int64), int(c.max_height / s.band_height))
     free = np.ones(len(points), bool)
     cans, rejections, last = [], [], None
-    # A round object claimed in a cluster before may go on in this one (a cup touching a can, split
+    # A round object claimed in another cluster may go on in this one (a cup touching a can, split
     # between the can's cluster and its own: fresh 13116 of "cluttered table"); its points there
     # crowd the can's side beside it and bend its circle ("not round").
     elsewhere = _on_claimed(points, ctx, claimed_elsewhere)
@@ -2126,7 +2126,7 @@ def search(clusters, standing, T_sensor_from_plane, sensor_plane, config, ray_an
     # Lowest clusters first is not needed: a stacked can's support is in its own cluster.
     for k, points in enumerate(clusters):
         before = len(ctx.claimed)
-        h, rejections[k] = search_cluster(points, ctx, ctx.claimed[:before])
+        h, rejections[k] = search_cluster(points, ctx, list(ctx.claimed))
         cans += [(k, can) for can in h]
         own.append((ctx.claimed[before:], before))
     # A round object claimed in a later cluster may go on in one searched before it where no can was
