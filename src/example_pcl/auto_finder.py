@@ -115,6 +115,11 @@ class AutoConfig:
         noise_coefficient x range^2."""
         return self.noise_coefficient * float(np.sum((np.asarray(point) - sensor) ** 2))
 
+    def r_eps_at(self, sigma):
+        """The inlier band (m) about a circle where the depth noise is sigma (m): max(r_eps,
+        r_eps_sigmas x sigma)."""
+        return max(self.r_eps, self.r_eps_sigmas * sigma)
+
     def validate(self):
         """Raises PerceptionError naming the first value that makes no sense."""
         positive = ("ransac_step", "plane_distance", "max_planes", "refine_step", "refine_band", "refine_iterations",
@@ -290,7 +295,7 @@ def fit_upright_cylinder(points_plane, sensor_plane, config=AutoConfig()):
     side = pts[(z >= c.fit_bottom + 3 * sigma) & (z <= height - c.top_margin - 3 * sigma)]
     if len(side) < c.min_fit_points:
         return None, height, None, len(side), f"{len(side)} side points (min {c.min_fit_points})"
-    r_eps = max(c.r_eps, c.r_eps_sigmas * sigma)
+    r_eps = c.r_eps_at(sigma)
     if len(side) > c.max_fit_points:
         side = side[:: int(np.ceil(len(side) / c.max_fit_points))]
     xy = side[:, :2]
@@ -410,7 +415,7 @@ def _with_hidden_ends(can, in_plane, standing, cluster, T_plane_from_sensor, sen
     occluders = flat[np.setdiff1d(standing, cluster)].astype(float)
     start = transforms.apply(T_plane_from_sensor, can.base_center)
     u = T_plane_from_sensor[:3, :3] @ can.axis
-    r_eps = max(config.r_eps, config.r_eps_sigmas * config.depth_sigma(start + 0.5 * can.height * u, sensor_plane))
+    r_eps = config.r_eps_at(config.depth_sigma(start + 0.5 * can.height * u, sensor_plane))
     hidden = lying.hidden_ends(start, u, can.height, can.radius, r_eps, sensor_plane, occluders, projector=projector,
                                own=flat[cluster].astype(float), ray_angle=ray_angle)
     return dataclasses.replace(can, ends_hidden=hidden)

@@ -438,7 +438,7 @@ def verify(free, cx, cy, r, ctx, z0=None, again=True, rim=False, split=True):
     smaller circle of its own is verified on it (inner_split)."""
     c, s = ctx.config, ctx.search
     sigma = _sigma(ctx, (cx, cy, free.median_z))
-    r_eps = max(c.r_eps, c.r_eps_sigmas * sigma)
+    r_eps = c.r_eps_at(sigma)
     # Every test before the fit looks within support_reach of the circle, which the refinement
     # below moves by less than 2 r_eps (and widens by less than 2 r_eps).
     near = free.near(cx, cy, r + 4 * r_eps + s.support_reach)
@@ -1460,7 +1460,7 @@ def search_cluster(points, ctx, claimed_elsewhere=()):
         near_upright = np.zeros(len(points), bool)
         for can in (c for c in cans if not c.lying):
             cx, cy = can.center_plane
-            reach = can.radius + 2 * max(c.r_eps, c.r_eps_sigmas * _sigma(ctx, (cx, cy, 0.5 * can.height)))
+            reach = can.radius + 2 * c.r_eps_at(_sigma(ctx, (cx, cy, 0.5 * can.height)))
             near_upright |= ((points[:, 0] - cx) ** 2 + (points[:, 1] - cy) ** 2 <= reach * reach) \
                 & (points[:, 2] <= can.support_height + can.height + s.band_height)
         lying_points = np.flatnonzero(free & ~near_upright)
@@ -1512,7 +1512,7 @@ def _on_claimed(points, ctx, claimed):
     c, s = ctx.config, ctx.search
     on = np.zeros(len(points), bool)
     for other in (o for o in claimed if c.min_radius <= o.r <= c.max_radius):
-        r_eps = max(c.r_eps, c.r_eps_sigmas * _sigma(ctx, (other.cx, other.cy, other.z_hi)))
+        r_eps = c.r_eps_at(_sigma(ctx, (other.cx, other.cy, other.z_hi)))
         on |= ((np.hypot(points[:, 0] - other.cx, points[:, 1] - other.cy) <= other.r + r_eps)
                & (points[:, 2] >= other.z_lo - s.band_height) & (points[:, 2] <= other.z_hi))
     return on
@@ -1551,7 +1551,7 @@ def _pools(this_round, ctx):
     face (fresh 13043)."""
     c, s = ctx.config, ctx.search
     pool = _wall_sample(this_round.points, s.pool_points, s.wall_cell, ctx.rng)
-    r_eps = max(c.r_eps, c.r_eps_sigmas * _sigma(ctx, this_round.points[pool].mean(axis=0)))
+    r_eps = c.r_eps_at(_sigma(ctx, this_round.points[pool].mean(axis=0)))
     radii = (c.min_radius, c.max_radius)
     # No triplet from a box's or prism's flat faces: circles through their corners outscored a small
     # can beside a big box and took the round's verifications.
@@ -1632,7 +1632,7 @@ def _lid_only(free, ctx):
         return None, "", None
     band = np.floor(z / s.band_height).astype(np.int64)
     sigma = _sigma(ctx, pts[high].mean(axis=0))
-    r_eps = max(c.r_eps, c.r_eps_sigmas * sigma)
+    r_eps = c.r_eps_at(sigma)
     counts = np.bincount(band[high])
     tried, tops, boxes = [], 0, np.zeros(len(z), bool)
     # A can beside a box lower than it (held-out 1909 of "can touching box", seen steeply from above)
@@ -2071,7 +2071,7 @@ def _lying(points, rest, ctx):
     c = ctx.config
     pts = points[rest]
     sigma = _sigma(ctx, pts.mean(axis=0))
-    found, why = lying.lying_cans(pts, max(c.r_eps, c.r_eps_sigmas * sigma), sigma, c, ctx.search, ctx.sensor,
+    found, why = lying.lying_cans(pts, c.r_eps_at(sigma), sigma, c, ctx.search, ctx.sensor,
                                   ctx.standing, ctx.projector, ctx.ray_angle)
     return [_lying_result(can, rest, ctx) for can in found], why
 
@@ -2128,13 +2128,13 @@ def search(clusters, standing, T_sensor_from_plane, sensor_plane, config, ray_an
         before = len(ctx.claimed)
         h, rejections[k] = search_cluster(points, ctx, list(ctx.claimed))
         cans += [(k, can) for can in h]
-        own.append((ctx.claimed[before:], before))
+        own.append((ctx.claimed[before:], len(ctx.claimed)))  # its claims, and where the later ones start
     # A round object claimed in a later cluster may go on in one searched before it where no can was
     # found (the cup of fresh 13116 split between its cluster and a can's): that one is searched again
     # without it (and without its own claims, made again).
     with_cans = {k for k, _ in cans}
-    again = [k for k, (mine, before) in enumerate(own) if k not in with_cans and np.count_nonzero(
-        _on_claimed(clusters[k], ctx, ctx.claimed[before + len(mine):])) >= config.min_fit_points]
+    again = [k for k, (_, after) in enumerate(own) if k not in with_cans and np.count_nonzero(
+        _on_claimed(clusters[k], ctx, ctx.claimed[after:])) >= config.min_fit_points]
     for k in again:
         ctx.claimed[:] = [o for o in ctx.claimed if not any(o is m for m in own[k][0])]
         h, rejections[k] = search_cluster(clusters[k], ctx, list(ctx.claimed))

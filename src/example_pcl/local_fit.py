@@ -195,7 +195,7 @@ def _refit_can(pts, T_sensor_from_plane, T_plane_from_sensor, sensor_plane, can,
     z = points[:, 2]
     # The mean as a matrix-vector product: NumPy's mean over axis 0 of (N, 3) costs 4x more.
     sigma = a.depth_sigma(np.ones(len(points)) @ points / len(points), sensor_plane)
-    r_eps = max(a.r_eps, a.r_eps_sigmas * sigma)
+    r_eps = a.r_eps_at(sigma)
     side = points[(z >= bottom + a.fit_bottom + 3 * sigma) & (z <= top - a.top_margin - 3 * sigma), :2]
     rows, cols = np.divmod(flat, c1 - c0)
     indices = (rows + r0) * pts.shape[1] + (cols + c0)
@@ -314,7 +314,7 @@ def _refit_lying(pts, T_sensor_from_plane, T_plane_from_sensor, sensor_plane, ca
         raise PerceptionError(f"{len(flat)} point(s) where the lying can was (min {a.min_fit_points})")
     points = window[flat].astype(float)
     sigma = a.depth_sigma(np.ones(len(points)) @ points / len(points), sensor_plane)
-    r_eps = max(a.r_eps, a.r_eps_sigmas * sigma)
+    r_eps = a.r_eps_at(sigma)
     s = a.cylinders
     fit = lying.refine_lying_cylinder(points, start, u, can.radius, r_eps, a.max_radius, s.lying_gap + 3 * sigma,
                                       a.fit_iterations, c.max_fit_points, sensor_plane)

@@ -283,7 +283,7 @@ def test_a_can_beside_a_cup_split_between_its_cluster_and_its_own_is_found(monke
     assert can.radius == pytest.approx(truth["radius"], abs=0.001)
 
 
-def test_a_can_on_a_box_whose_corner_lies_under_its_circle_stands_on_the_box():
+def test_a_can_on_a_box_whose_face_lies_under_its_circle_stands_on_the_box():
     """Fresh 13218 of "can on box": the face of the box under the can, 4 mm inside its circle, lay
     near it (20 points a band, the side 42), and the run bridged the band of the box's top (no side
     on the circle, 131 points around it): a can 191 mm high from the table. The side starts above
