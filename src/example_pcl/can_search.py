@@ -1494,7 +1494,7 @@ def search_cluster(points, ctx, claimed_elsewhere=()):
         else:
             rejections.append(Rejection(centroid=points[claim].mean(axis=0), n_points=len(claim), reason=reason))
             free[claim] = False
-            _withdraw_inside_cup(points, cans, rejections, ctx)
+            _withdraw_inside_cup(cans, free, ctx)
         last = _rounds(points, bands, free, cans, rejections, ctx) or last
         rest = np.flatnonzero(free)
     if len(rest) >= c.min_fit_points or not (cans or rejections):
@@ -1598,7 +1598,7 @@ def _verify_draws(points, this_round, xy, z_pool, face, r_eps, free, cans, rejec
                 rejections.append(Rejection(centroid=points[claim].mean(axis=0), n_points=len(claim),
                                             reason=reason, radius=r0))
                 free[claim] = False
-                _withdraw_inside_cup(points, cans, rejections, ctx)
+                _withdraw_inside_cup(cans, free, ctx)
                 return True, failed
             failed = failed or (reason, r0)
             tried |= np.abs(np.hypot(xy[:, 0] - cx0, xy[:, 1] - cy0) - r0) <= r_eps
@@ -1606,22 +1606,20 @@ def _verify_draws(points, this_round, xy, z_pool, face, r_eps, free, cans, rejec
     return False, failed
 
 
-def _withdraw_inside_cup(points, cans, rejections, ctx):
+def _withdraw_inside_cup(cans, free, ctx):
     """After a claim: the upright cans found in this cluster (cans, updated in place) whose circle
-    reaches into a cup or mug claimed since (_inside_cup) are made rejections with their points.
-    Verified before the cup, whose handle bent its side ("not round" first), such a circle is its
-    handle (fresh 13518 of "cluttered table": r 19 mm about a mug's handle and part of its wall, 8 mm
-    into the mug)."""
+    reaches into a cup or mug claimed since (_inside_cup) are withdrawn, their points made free
+    again (bool over the cluster's points) for the rounds after. Verified before the cup, whose
+    handle bent its side ("not round" first), such a circle was its handle (fresh 13518 of
+    "cluttered table": r 19 mm about a mug's handle and part of its wall, 8 mm into the mug), or a
+    can's circle bent wide by what touches it (fresh 13822: r 54 mm for 40, 15 mm off)."""
     for can in [can for can in cans if not can.lying]:
         cx, cy = can.center_plane
-        top = can.support_height + can.height
         r_eps = ctx.config.r_eps_at(_sigma(ctx, (cx, cy, can.support_height + 0.5 * can.height)))
-        why = _inside_cup(cx, cy, can.radius, can.support_height, top, r_eps, ctx)
-        if why:
+        if _inside_cup(cx, cy, can.radius, can.support_height, can.support_height + can.height, r_eps, ctx):
             cans.remove(can)
             ctx.found.remove(can)
-            rejections.append(Rejection(centroid=points[can.indices].mean(axis=0), n_points=len(can.indices),
-                                        reason=why, radius=can.radius))
+            free[can.indices] = True
 
 
 def _lid_only(free, ctx):

@@ -306,8 +306,8 @@ def test_a_box_top_touching_a_cans_side_is_no_surface_it_stands_on():
 def test_a_mugs_handle_verified_before_the_mug_is_withdrawn_when_the_mug_is_claimed():
     """Fresh 13518 of "cluttered table": the handle bent the mug's side ("not round", 1.58 mm), so a
     circle of r 19 mm about the handle and part of the mug's wall was verified first and taken for a
-    can; the mug, claimed next by its far inner wall, showed the two share 8 mm. That can is withdrawn
-    with the reason; the two true cans stay."""
+    can; the mug, claimed next by its far inner wall, showed the two share 8 mm. That can is withdrawn,
+    its points searched again (no can there); the two true cans stay."""
     scene = sc.generate_scene(so.case_spec("cluttered table", 13518))
     to_table = transforms.invert(np.asarray(scene.truth["camera_from_table"]))
     result = af.find_cans(scene.xyz)
@@ -315,7 +315,6 @@ def test_a_mugs_handle_verified_before_the_mug_is_withdrawn_when_the_mug_is_clai
     found = [table_xy(to_table, c)[:2] for c in result.cans]
     assert len(found) == len(truth) == 2
     assert all(min(np.hypot(*(f - t)) for f in found) < 0.002 for t in truth)
-    assert any("into a cup or mug" in r.reason for r in result.rejected)
 
 
 def test_two_touching_half_hidden_cans_are_not_the_wide_circle_tangent_to_both():
