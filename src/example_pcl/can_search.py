@@ -1492,9 +1492,7 @@ def search_cluster(points, ctx, claimed_elsewhere=()):
         elif claim is None:
             break
         else:
-            rejections.append(Rejection(centroid=points[claim].mean(axis=0), n_points=len(claim), reason=reason))
-            free[claim] = False
-            _withdraw_inside_cup(cans, free, ctx)
+            _take_claim(points, claim, reason, None, free, cans, rejections, ctx)
         last = _rounds(points, bands, free, cans, rejections, ctx) or last
         rest = np.flatnonzero(free)
     if len(rest) >= c.min_fit_points or not (cans or rejections):
@@ -1595,15 +1593,22 @@ def _verify_draws(points, this_round, xy, z_pool, face, r_eps, free, cans, rejec
                 return True, failed
             if claim is not None and len(claim):
                 # A round object that is no can (a tin, a cup): named, and not tried again.
-                rejections.append(Rejection(centroid=points[claim].mean(axis=0), n_points=len(claim),
-                                            reason=reason, radius=r0))
-                free[claim] = False
-                _withdraw_inside_cup(cans, free, ctx)
+                _take_claim(points, claim, reason, r0, free, cans, rejections, ctx)
                 return True, failed
             failed = failed or (reason, r0)
             tried |= np.abs(np.hypot(xy[:, 0] - cx0, xy[:, 1] - cy0) - r0) <= r_eps
             tried_circles.append((cx0, cy0, r0))
     return False, failed
+
+
+def _take_claim(points, claim, reason, radius, free, cans, rejections, ctx):
+    """A round object claimed as no can (claim: indices into the cluster's points): named in the
+    rejections with its reason and hypothesis radius (m, or None), its points taken from free, and
+    the cans found before it that reach into it withdrawn (_withdraw_inside_cup)."""
+    rejections.append(Rejection(centroid=points[claim].mean(axis=0), n_points=len(claim), reason=reason,
+                                radius=radius))
+    free[claim] = False
+    _withdraw_inside_cup(cans, free, ctx)
 
 
 def _withdraw_inside_cup(cans, free, ctx):
