@@ -1047,9 +1047,10 @@ def _support(points, cx, cy, r, base, r_eps, sigma, ctx):
     inside = np.count_nonzero(under_base & (dist < r - 0.5 * r_eps))
     narrower = np.count_nonzero(under_base & (dist < r - r_eps)) >= s.min_band_points \
         or (inside >= s.min_band_points and inside > 0.5 * np.count_nonzero(under_base))
-    n_beside = int(np.count_nonzero(beside))
-    if n_beside >= s.min_band_points or narrower:
-        base_z = _top_layer(z[level], base, sigma) if n_beside >= s.min_band_points else base
+    # The surface's top, when its points there form a layer that can hold the base (_top_layer).
+    layer = _top_layer(z[level], base, sigma) if np.count_nonzero(beside) >= s.min_band_points else None
+    if layer is not None or narrower:
+        base_z = base if layer is None else layer
         if not narrower and _side_goes_on_down(points, dist, cx, cy, r, base_z - 3 * sigma, r_eps, ctx):
             return "table", True, 0.0, ""
         below = "object"
@@ -1075,8 +1076,9 @@ def _support(points, cx, cy, r, base, r_eps, sigma, ctx):
             continue
         lid = ((np.hypot(st[:, 0] - other.cx, st[:, 1] - other.cy) <= other.r + r_eps)
                & (np.hypot(srel[:, 0], srel[:, 1]) > r + r_eps) & _at_base(st[:, 2], base, sigma))
-        if np.count_nonzero(lid) >= s.min_band_points:
-            return "object", True, _top_layer(st[lid, 2], base, sigma), ""
+        top = _top_layer(st[lid, 2], base, sigma) if np.count_nonzero(lid) >= s.min_band_points else None
+        if top is not None:
+            return "object", True, top, ""
     # Something in front, as high as the lowest point seen: the base is hidden behind it. Beyond r_eps: its
     # own front's noise is nothing in front of it (fresh 4630 of "cup on can": a cup on a can stood on the
     # table behind itself, and its claim took the can).
@@ -1098,9 +1100,15 @@ def _support(points, cx, cy, r, base, r_eps, sigma, ctx):
 
 
 def _at_base(z, base, sigma):
-    """Whether heights z (m; array or scalar) lie at a base's height (m): from 25 mm (and 3 sigma)
-    under it, where a support's top may lie below the lowest side point seen, to 5 mm over it."""
-    return (z >= base - 0.025 - 3 * sigma) & (z <= base + 0.005)
+    """Whether heights z (m; array or scalar) lie at a base's height (m): within _base_window."""
+    lo, hi = _base_window(base, sigma)
+    return (z >= lo) & (z <= hi)
+
+
+def _base_window(base, sigma):
+    """The heights (m) at a base's height (m): from 25 mm (and 3 sigma) under it, where a support's
+    top may lie below the lowest side point seen, to 5 mm over it."""
+    return base - 0.025 - 3 * sigma, base + 0.005
 
 
 def _side_goes_on_down(points, dist, cx, cy, r, below, r_eps, ctx):
@@ -1128,14 +1136,22 @@ def _side_goes_on_down(points, dist, cx, cy, r, below, r_eps, ctx):
 
 def _top_layer(z, base, sigma):
     """The height (m) of a support's top from the heights z (m) of the points at the level of a
-    base (m, the lowest side point): the median of those within 3 sigma (2 mm at least) under their
-    90th percentile. The support's side's points lower down would pull the median of all of them
-    down ("can on can" 6723: a can's lid at 104.5 mm, its side's points to 85 mm in the window,
-    median 99.2 mm). A layer above the base is another object's beside the can, no support's top (a
-    prism's slanted face, a cup's rim; fresh 6129 and 8514 of "cluttered table"): the median of all."""
+    base (m, the lowest side point; _at_base): the median of those within 3 sigma (2 mm at least)
+    under their 90th percentile, or None when they hold no such layer. The support's side's points
+    lower down would pull the median of all of them down ("can on can" 6723: a can's lid at 104.5
+    mm, its side's points to 85 mm in the window, median 99.2 mm). No layer: fewer than twice the
+    points an even spread over the window puts there (a neighbour's side beside the can, or in front
+    of it: fresh 13906 and 13920 of "cluttered table", cans on the table put 47 and 37 mm up), or a
+    layer more than sigma above the base, another object's (a prism's slanted face, 2.2 sigma above
+    it: fresh 6129, 42 mm up). Within sigma it is the support's: the lowest side point is as noisy
+    (fresh 13909 of "can on can": the lower can's lid 0.2 sigma above it, the base put 12 mm low)."""
     high = _percentile(z, 90)
-    top = _percentile(z[z >= high - max(3 * sigma, 0.002)], 50)
-    return top if top <= base else _percentile(z, 50)
+    width = max(3 * sigma, 0.002)
+    layer = z >= high - width
+    lo, hi = _base_window(base, sigma)
+    even = len(z) * width / (hi - lo)  # the count an even spread over the window puts in the layer's width
+    top = _percentile(z[layer], 50)
+    return top if top <= base + sigma and np.count_nonzero(layer) >= 2 * even else None
 
 
 def _covered_top(cx, cy, r, r_eps, top, sigma, ctx):
