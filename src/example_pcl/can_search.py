@@ -1137,14 +1137,11 @@ def _side_goes_on_down(points, dist, cx, cy, r, below, r_eps, ctx):
 def _top_layer(z, base, sigma):
     """The height (m) of a support's top from the heights z (m) of the points at the level of a
     base (m, the lowest side point; _at_base): the median of those within 3 sigma (2 mm at least)
-    under their 90th percentile, or None when they hold no such layer. The support's side's points
-    lower down would pull the median of all of them down ("can on can" 6723: a can's lid at 104.5
-    mm, its side's points to 85 mm in the window, median 99.2 mm). No layer: fewer than twice the
-    points an even spread over the window puts there (a neighbour's side beside the can, or in front
-    of it: fresh 13906 and 13920 of "cluttered table", cans on the table put 47 and 37 mm up), or a
-    layer more than sigma above the base, another object's (a prism's slanted face, 2.2 sigma above
-    it: fresh 6129, 42 mm up). Within sigma it is the support's: the lowest side point is as noisy
-    (fresh 13909 of "can on can": the lower can's lid 0.2 sigma above it, the base put 12 mm low)."""
+    under their 90th percentile, not of all (the support's side lower down would pull it down:
+    "can on can" 6723). None when they hold no such layer: fewer than twice the points an even
+    spread over the window puts there (a neighbour's side: fresh 13906, 13920 of "cluttered table"),
+    or more than sigma above the base, another object's (fresh 6129); within sigma the lowest side
+    point is as noisy (fresh 13909 of "can on can"). Docs: can_search.md, step 4."""
     high = _percentile(z, 90)
     width = max(3 * sigma, 0.002)
     layer = z >= high - width
