@@ -1076,9 +1076,9 @@ def _support(points, cx, cy, r, base, r_eps, sigma, ctx):
             continue
         lid = ((np.hypot(st[:, 0] - other.cx, st[:, 1] - other.cy) <= other.r + r_eps)
                & (np.hypot(srel[:, 0], srel[:, 1]) > r + r_eps) & _at_base(st[:, 2], base, sigma))
-        top = _top_layer(st[lid, 2], base, sigma) if np.count_nonzero(lid) >= s.min_band_points else None
-        if top is not None:
-            return "object", True, top, ""
+        lid_top = _top_layer(st[lid, 2], base, sigma) if np.count_nonzero(lid) >= s.min_band_points else None
+        if lid_top is not None:
+            return "object", True, lid_top, ""
     # Something in front, as high as the lowest point seen: the base is hidden behind it. Beyond r_eps: its
     # own front's noise is nothing in front of it (fresh 4630 of "cup on can": a cup on a can stood on the
     # table behind itself, and its claim took the can).
