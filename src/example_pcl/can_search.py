@@ -520,7 +520,7 @@ def verify(free, cx, cy, r, ctx, z0=None, again=True, rim=False, split=True):
     lo = surface[-1] + 1 if surface else lo
     z_lo, z_hi = lo * s.band_height, (hi + 1) * s.band_height
     # The side ends top_margin (and 3 sigma) below the lid, so the lid's rim is no side point.
-    top = _lid(dist, z, r, r_eps, z_lo, z_hi, s)
+    top = _lid(pts[:, :2], dist, z, r, r_eps, z_lo, z_hi, s)
     z_end = min(z_hi, top - c.top_margin - 3 * sigma)
     side = on & (z >= z_lo) & (z < z_end)
     n_side = int(np.count_nonzero(side))
@@ -607,7 +607,7 @@ def _judge_side(free, cx, cy, r, r_eps, cutoff, sigma, z_lo, z_hi, top, claim, c
         z_lo, z_hi = part[0] * s.band_height, (part[1] + 1) * s.band_height
     # The lid again about the fitted circle: a box touching the side lay inside the hypothesis' wider
     # one. The lower of the two: points that do not belong (a box, a can on the lid) only raise it.
-    top = min(top, _lid(dist, z, r, r_eps, z_lo, z_hi, s, fitted=True))
+    top = min(top, _lid(pts[:, :2], dist, z, r, r_eps, z_lo, z_hi, s, fitted=True))
     z_end = min(z_hi, top - c.top_margin - 3 * sigma)
     in_run = (z >= z_lo) & (z < z_end)
     facing_run = facing & in_run
@@ -889,14 +889,15 @@ def _under_claimed(cx, cy, r, top, r_eps, ctx):
     return ""
 
 
-def _lid(dist, z, r, r_eps, z_lo, z_hi, s, fitted=False):
+def _lid(xy, dist, z, r, r_eps, z_lo, z_hi, s, fitted=False):
     """The height of the lid (m) over the run of bands z_lo..z_hi (m) of a circle of radius r: the 99th
-    percentile of the heights z of the points within the disc (dist: from the axis, m) up to 2 bands
-    above the run. Taken on the disc's outer ring when it holds points: a narrower can standing on the
-    lid rises inside it. Above the run, only points within the circle by r_eps / 2: a taller box or
-    can touching the side lies just outside it, within r_eps, and made the lid its height (the lid was
-    then "deep inside" the rim: a cup; "can touching box", development seeds 57 and 97). fitted: the
-    circle is the side's own fit (a hypothesis' circle may take in a box touching the can)."""
+    percentile of the heights z of the points within the disc (xy: plane frame, dist: from the axis, m)
+    up to 2 bands above the run. Taken on the disc's outer ring when it holds points: a narrower can
+    standing on the lid rises inside it. Above the run, only points within the circle by r_eps / 2: a
+    taller box or can touching the side lies just outside it, within r_eps, and made the lid its height
+    (the lid was then "deep inside" the rim: a cup; "can touching box", development seeds 57 and 97);
+    nor a surface reaching in over the circle from beyond it (_top_from_beside). fitted: the circle is
+    the side's own fit (a hypothesis' circle may take in a box touching the can)."""
     lid = ((dist <= r + r_eps) & (z >= z_lo) & (z < z_hi + 2 * s.band_height)
            & ((z < z_hi) | (dist <= r - 0.5 * r_eps)))
     ring = lid & (dist >= 0.7 * r)
@@ -911,7 +912,39 @@ def _lid(dist, z, r, r_eps, z_lo, z_hi, s, fitted=False):
         if (np.count_nonzero(on_lid) >= s.min_band_points
                 and _percentile(z[on_lid], 95) - _percentile(z[on_lid], 5) >= 2 * s.band_height):
             ring &= dist >= _percentile(dist[on_lid], 95) + 0.5 * r_eps
-    return _percentile(z[ring if np.count_nonzero(ring) >= s.min_band_points else lid], 99)
+    used = ring if np.count_nonzero(ring) >= s.min_band_points else lid
+    top = _percentile(z[used], 99)
+    inner = lid & (dist < 0.7 * r)
+    if top >= z_hi and np.count_nonzero(inner & (np.abs(z - top) <= 0.5 * s.band_height)) < s.min_band_points:
+        # A top on the ring alone, joined to a surface beyond the circle, over a lid of its own across the
+        # disc's inside, is a taller neighbour's reaching in over a circle fitted wide (fresh 14228 of
+        # "cans touching": r 35 mm over a can of 29 took the top of the can behind it, 16 mm higher, and
+        # its own lid lay "inside, below the rim": a cup). A cup's rim joins nothing beyond it.
+        theirs = _top_from_beside(xy, dist, z, r, r_eps, top, s)
+        own = used & ~theirs
+        if theirs.any() and np.count_nonzero(own) >= s.min_band_points:
+            lower = _percentile(z[own], 99)
+            if (lower < top - 0.5 * s.band_height
+                    and np.count_nonzero(inner & (np.abs(z - lower) <= 0.5 * s.band_height)) >= s.min_band_points):
+                return lower
+    return top
+
+
+def _top_from_beside(xy, dist, z, r, r_eps, top, s):
+    """bool over the points (xy, m, plane frame; dist from the axis, z, m): those at the height `top` (m,
+    within half a band) of a surface joined to points beyond the circle (radius r, r_eps, m) at that
+    height: another object's top reaching in over the circle, no lid of its own."""
+    layer = (np.abs(z - top) <= 0.5 * s.band_height) & (dist <= r + 3 * r_eps)
+    beyond = layer & (dist > r + r_eps)
+    theirs = np.zeros(len(z), bool)
+    if not beyond.any() or np.count_nonzero(layer) < 2:
+        return theirs
+    where = np.flatnonzero(layer)
+    tree = cKDTree(xy[where])
+    nearest, _ = tree.query(xy[where], k=2)
+    piece = _pieces(tree, 2 * float(np.median(nearest[:, 1])))
+    theirs[where] = np.isin(piece, piece[beyond[where]])
+    return theirs
 
 
 def _claim_round(xy, cx, cy, r, claim, config):

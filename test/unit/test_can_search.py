@@ -369,6 +369,52 @@ def test_a_taller_box_touching_a_can_does_not_carry_its_side_above_its_lid():
     assert result.cans[0].height == pytest.approx(0.108, abs=0.004)
 
 
+def test_a_taller_neighbours_top_reaching_in_over_a_wide_circle_is_no_lid():
+    """A circle fitted 35 mm wide, 7 mm off a can of r 29 mm (lid 141 mm up), takes in the edge of the
+    lid of a taller can touching it (157 mm): the lid is the can's own, not the neighbour's top,
+    whose surface goes on beyond the circle (fresh 14228 of "cans touching": "open top"). A cup's
+    rim, nothing beyond it, stays its top."""
+    s = cs.CylinderSearchConfig()
+    rng = np.random.default_rng(3)
+
+    def disc(cx, cy, radius, z):  # a lid sampled every 2 mm, as a sensor's grid does
+        x, y = (v.ravel() for v in np.meshgrid(*[np.arange(-radius, radius, 0.002)] * 2))
+        x, y = x[np.hypot(x, y) <= radius], y[np.hypot(x, y) <= radius]
+        return np.c_[cx + x, cy + y, z + rng.normal(0, 0.0005, len(x))]
+
+    can_lid = disc(-0.001, -0.007, 0.029, 0.141)
+    neighbour_lid = disc(0.0365, 0.0445, 0.033, 0.157)
+    n_lid, n_both = len(can_lid), len(can_lid) + len(neighbour_lid)
+    a = rng.uniform(0, 2 * np.pi, 400)
+    side = np.c_[-0.001 + 0.029 * np.cos(a), -0.007 + 0.029 * np.sin(a), rng.uniform(0.01, 0.14, 400)]
+    pts = np.concatenate([can_lid, neighbour_lid, side])
+    dist = np.hypot(pts[:, 0], pts[:, 1])
+    theirs = cs._top_from_beside(pts[:, :2], dist, pts[:, 2], 0.035, 0.006, 0.157, s)
+    assert theirs[n_lid:n_both][dist[n_lid:n_both] <= 0.035].all() and not theirs[:n_lid].any()
+    assert cs._lid(pts[:, :2], dist, pts[:, 2], 0.035, 0.006, 0.01, 0.14, s, fitted=True) == \
+        pytest.approx(0.141, abs=0.002)
+    # The same without the neighbour: the cup's rim (a ring at 157 mm) over its inside stays the top.
+    rim = np.c_[0.031 * np.cos(a), 0.031 * np.sin(a), 0.157 + rng.normal(0, 0.0005, 400)]
+    cup = np.concatenate([can_lid, rim, side])
+    dist = np.hypot(cup[:, 0], cup[:, 1])
+    assert cs._lid(cup[:, :2], dist, cup[:, 2], 0.035, 0.006, 0.01, 0.14, s, fitted=True) == \
+        pytest.approx(0.157, abs=0.002)
+
+
+def test_a_can_in_front_of_a_taller_one_it_touches_is_found_with_its_own_height():
+    """Fresh 14228 of "cans touching": a can of r 29 mm, 142 mm high, in front of one of r 33 mm, 159
+    mm, is found within 2 mm with its own height, not rejected as an open top."""
+    scene = sc.generate_scene(so.case_spec("cans touching", 14228))
+    to_table = transforms.invert(np.asarray(scene.truth["camera_from_table"]))
+    result = af.find_cans(scene.xyz)
+    for truth in scene.truth["objects"]:
+        base = transforms.apply(to_table, truth["base_center"])
+        can = min(result.cans, key=lambda c: np.hypot(*(table_xy(to_table, c)[:2] - base[:2])))
+        why = [r.reason for r in result.rejected]
+        assert np.hypot(*(table_xy(to_table, can)[:2] - base[:2])) < CENTRE_TOLERANCE, why
+        assert abs(can.height - truth["height"]) < 0.005, (can.height, truth["height"])
+
+
 def test_a_can_behind_two_taller_ones_is_fitted_by_its_side_and_its_lids_rim():
     """A wide can behind two taller ones shows a 0.55-rad stripe of side through the gap between them
     (no circle fits it alone) and its lid's rim over 1.3 rad, the rest of the rim in the front cans'
