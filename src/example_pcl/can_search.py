@@ -1082,6 +1082,11 @@ def _support(points, cx, cy, r, base, r_eps, sigma, ctx):
         or (inside >= s.min_band_points and inside > 0.5 * np.count_nonzero(under_base))
     # The surface's top, when its points there form a layer that can hold the base (_top_layer).
     layer = _top_layer(z[level], base, sigma) if np.count_nonzero(beside) >= s.min_band_points else None
+    if layer is not None and _top_layer(z[beside], base, sigma) is None:
+        # A layer beside the can too, not only in front of it: a bowl's rim in front of a can whose base it
+        # hides, a neighbour's side beside it (fresh 14438 of the cluttered table: put on the rim, 62 mm
+        # up, the can was 35 mm high).
+        layer = None
     if layer is not None or narrower:
         base_z = base if layer is None else layer
         if not narrower and _side_goes_on_down(points, dist, cx, cy, r, base_z - 3 * sigma, r_eps, ctx):
