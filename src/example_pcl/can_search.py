@@ -940,9 +940,7 @@ def _top_from_beside(xy, dist, z, r, r_eps, top, s):
     if not beyond.any() or np.count_nonzero(layer) < 2:
         return theirs
     where = np.flatnonzero(layer)
-    tree = cKDTree(xy[where])
-    nearest, _ = tree.query(xy[where], k=2)
-    piece = _pieces(tree, 2 * float(np.median(nearest[:, 1])))
+    piece = _spaced_pieces(xy[where])
     theirs[where] = np.isin(piece, piece[beyond[where]])
     return theirs
 
@@ -1794,12 +1792,18 @@ def _lid_pieces(lid, min_points):
     again, passed as a lid of r 15 mm)."""
     if len(lid) < 2 * min_points:
         return []
-    tree = cKDTree(lid[:, :2])
-    nearest, _ = tree.query(lid[:, :2], k=2)
-    label = _pieces(tree, 2 * float(np.median(nearest[:, 1])))
+    label = _spaced_pieces(lid[:, :2])
     counts = np.bincount(label)
     pieces = [lid[label == k] for k in np.argsort(-counts, kind="stable") if counts[k] >= min_points]
     return pieces if len(pieces) >= 2 else []
+
+
+def _spaced_pieces(xy):
+    """Each point's piece (int (N,), 0 up) of points xy (float (N, 2), m, N >= 2) joined by chains of
+    points each within twice their median nearest-neighbour spacing of the next."""
+    tree = cKDTree(xy)
+    nearest, _ = tree.query(xy, k=2)
+    return _pieces(tree, 2 * float(np.median(nearest[:, 1])))
 
 
 def _pieces(tree, link):
