@@ -915,28 +915,32 @@ def _lid(xy, dist, z, r, r_eps, z_lo, z_hi, s, fitted=False):
     used = ring if np.count_nonzero(ring) >= s.min_band_points else lid
     top = _percentile(z[used], 99)
     inner = lid & (dist < 0.7 * r)
-    if top >= z_hi and np.count_nonzero(inner & (np.abs(z - top) <= 0.5 * s.band_height)) < s.min_band_points:
+
+    def at(height):  # the points within half a band of a height (m)
+        return np.abs(z - height) <= 0.5 * s.band_height
+
+    at_top = at(top)
+    if top >= z_hi and np.count_nonzero(inner & at_top) < s.min_band_points:
         # A top on the ring alone, joined to a surface beyond the circle, over a lid of its own across the
         # disc's inside, is a taller neighbour's reaching in over a circle fitted wide (fresh 14228 of
         # "cans touching": r 35 mm over a can of 29 took the top of the can behind it, 16 mm higher, and
         # its own lid lay "inside, below the rim": a cup). A cup's rim joins nothing beyond it.
-        theirs = _top_from_beside(xy, dist, z, r, r_eps, top, s)
+        theirs = _top_from_beside(xy, dist, at_top, r, r_eps)
         own = used & ~theirs
         if theirs.any() and np.count_nonzero(own) >= s.min_band_points:
             lower = _percentile(z[own], 99)
-            if (lower < top - 0.5 * s.band_height
-                    and np.count_nonzero(inner & (np.abs(z - lower) <= 0.5 * s.band_height)) >= s.min_band_points):
+            if lower < top - 0.5 * s.band_height and np.count_nonzero(inner & at(lower)) >= s.min_band_points:
                 return lower
     return top
 
 
-def _top_from_beside(xy, dist, z, r, r_eps, top, s):
-    """bool over the points (xy, m, plane frame; dist from the axis, z, m): those at the height `top` (m,
-    within half a band) of a surface joined to points beyond the circle (radius r, r_eps, m) at that
-    height: another object's top reaching in over the circle, no lid of its own."""
-    layer = (np.abs(z - top) <= 0.5 * s.band_height) & (dist <= r + 3 * r_eps)
+def _top_from_beside(xy, dist, at_top, r, r_eps):
+    """bool over the points (xy, m, plane frame; dist from the axis, m): those of at_top (bool: at a
+    top's height) on a surface joined to points beyond the circle (radius r, r_eps, m) at that height:
+    another object's top reaching in over the circle, no lid of its own."""
+    layer = at_top & (dist <= r + 3 * r_eps)
     beyond = layer & (dist > r + r_eps)
-    theirs = np.zeros(len(z), bool)
+    theirs = np.zeros(len(dist), bool)
     if not beyond.any() or np.count_nonzero(layer) < 2:
         return theirs
     where = np.flatnonzero(layer)
@@ -1078,13 +1082,12 @@ def _support(points, cx, cy, r, base, r_eps, sigma, ctx):
     inside = np.count_nonzero(under_base & (dist < r - 0.5 * r_eps))
     narrower = np.count_nonzero(under_base & (dist < r - r_eps)) >= s.min_band_points \
         or (inside >= s.min_band_points and inside > 0.5 * np.count_nonzero(under_base))
-    # The surface's top, when its points there form a layer that can hold the base (_top_layer).
-    layer = _top_layer(z[level], base, sigma) if np.count_nonzero(beside) >= s.min_band_points else None
-    if layer is not None and _top_layer(z[beside], base, sigma) is None:
-        # A layer beside the can too, not only in front of it: a bowl's rim in front of a can whose base it
-        # hides, a neighbour's side beside it (fresh 14438 of the cluttered table: put on the rim, 62 mm
-        # up, the can was 35 mm high).
-        layer = None
+    # The surface's top, when its points there form a layer that can hold the base (_top_layer). Beside
+    # the can too, not only in front of it: a bowl's rim in front of a can whose base it hides, a
+    # neighbour's side beside it (fresh 14438 of the cluttered table: put on the rim, 62 mm up, the can
+    # was 35 mm high).
+    held = np.count_nonzero(beside) >= s.min_band_points and _top_layer(z[beside], base, sigma) is not None
+    layer = _top_layer(z[level], base, sigma) if held else None
     if layer is not None or narrower:
         base_z = base if layer is None else layer
         if not narrower and _side_goes_on_down(points, dist, cx, cy, r, base_z - 3 * sigma, r_eps, ctx):
