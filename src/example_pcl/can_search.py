@@ -1841,31 +1841,16 @@ def _lid_judged(free, z_lid, lid, sigma, r_eps, ctx):
     rim = g.rim_circle(lid, ctx.sensor[:2], r_eps)
     if rim is None or len(rim.outline) < c.shape_bins:
         return None, "", None
-    by_side = None
-    whole = _lid_rim(rim, lid, sigma, r_eps, ctx)
-    if not whole:
-        # A lid the can in front cuts short shows its rim over less than lid_arc: pinned by the stripe
-        # of side under it ("cans touching" 2408, development 73 of "cluttered table"), or, with no
-        # such stripe, judged as it is if something in front stands higher (_lid_rim's shaded).
-        stripe = _side_stripe(rim, pts, z_lid, r_eps, ctx)
-        pinned = by_side = (None if stripe is None
-                            else _rim_with_side(rim, stripe, lid, sigma, r_eps, ctx, side_counts=True))
-        if pinned is not None and g.line_ratio(stripe, pinned.cx, pinned.cy, pinned.radius) < s.flat_ratio:
-            # A stripe lying nearer a line than its circle by more than 1 / flat_ratio (rms) is a box's
-            # face under its top: no lid at this height (fresh 10528 of "cluttered table", a 69 x 44 mm
-            # box's top cut short by a taller can's shadow, 0.42, and development 312, a prism's, 0.38:
-            # each a can of r 23 mm; the cans pinned on "cans touching" and "cluttered table" 60-399:
-            # 0.62-1.97).
+    judged = _rim_judged(rim, pts, z_lid, lid, sigma, r_eps, ctx)
+    if judged is None:
+        # A lid the can in front cuts short to a noisy crescent may fit a circle too wide that overlaps
+        # that can (fresh 14009 of "cans touching": r 40 mm for 35, 60 points at 1.2 m, rms 2.9 mm,
+        # 7 mm into it): judged again on the circle touching it, as _clear_of_found refits one that passed.
+        moved = _clear_of_found(rim, lid, r_eps, ctx)
+        judged = None if moved is rim else _rim_judged(moved, pts, z_lid, lid, sigma, r_eps, ctx)
+        if judged is None:
             return None, "", None
-        if pinned is None and not _lid_rim(rim, lid, sigma, r_eps, ctx, shaded=True):
-            # A lid seen sparsely (far, a few points per sector of the outline) has outline samples
-            # well inside its rim; judged on the rest too, those on the hull of its points (fresh 5134
-            # of "cluttered table": a can behind a taller box at 1.1 m, 82 points on its lid, the
-            # box's shadow cutting its near part; its rim 7 mm small, 7 mm off).
-            pinned = _hull_rim(rim, lid, sigma, r_eps, ctx)
-            if pinned is None:
-                return None, "", None
-        rim = rim if pinned is None else pinned
+    rim, whole, by_side = judged
     rim = _clear_of_found(rim, lid, r_eps, ctx)
     cx, cy, r, far = rim.cx, rim.cy, rim.radius, rim.outline
     if _top_of_claimed(cx, cy, r, z_lid, r_eps, ctx):
@@ -1948,6 +1933,40 @@ def _lid_judged(free, z_lid, lid, sigma, r_eps, ctx):
                center_plane=np.array([cx, cy]),
                shape_error=g.shape_error(far, cx, cy, rim.outline_radius, c.shape_bins),
                indices=mine, support="table", base_seen=False, support_height=0.0), "", None
+
+
+def _rim_judged(rim, pts, z_lid, lid, sigma, r_eps, ctx):
+    """_lid_judged's tests of a lid's rim (geometry.RimCircle; lid: its points at the height z_lid, pts
+    the cluster's free points, float (N, 3), plane frame, m): (the rim, refitted if pinned by a
+    stripe of side or fitted on its hull, whether it was seen whole, the pinned rim or None), or None
+    when it is no lid's rim."""
+    s = ctx.search
+    by_side = None
+    whole = _lid_rim(rim, lid, sigma, r_eps, ctx)
+    if not whole:
+        # A lid the can in front cuts short shows its rim over less than lid_arc: pinned by the stripe
+        # of side under it ("cans touching" 2408, development 73 of "cluttered table"), or, with no
+        # such stripe, judged as it is if something in front stands higher (_lid_rim's shaded).
+        stripe = _side_stripe(rim, pts, z_lid, r_eps, ctx)
+        pinned = by_side = (None if stripe is None
+                            else _rim_with_side(rim, stripe, lid, sigma, r_eps, ctx, side_counts=True))
+        if pinned is not None and g.line_ratio(stripe, pinned.cx, pinned.cy, pinned.radius) < s.flat_ratio:
+            # A stripe lying nearer a line than its circle by more than 1 / flat_ratio (rms) is a box's
+            # face under its top: no lid at this height (fresh 10528 of "cluttered table", a 69 x 44 mm
+            # box's top cut short by a taller can's shadow, 0.42, and development 312, a prism's, 0.38:
+            # each a can of r 23 mm; the cans pinned on "cans touching" and "cluttered table" 60-399:
+            # 0.62-1.97).
+            return None
+        if pinned is None and not _lid_rim(rim, lid, sigma, r_eps, ctx, shaded=True):
+            # A lid seen sparsely (far, a few points per sector of the outline) has outline samples
+            # well inside its rim; judged on the rest too, those on the hull of its points (fresh 5134
+            # of "cluttered table": a can behind a taller box at 1.1 m, 82 points on its lid, the
+            # box's shadow cutting its near part; its rim 7 mm small, 7 mm off).
+            pinned = _hull_rim(rim, lid, sigma, r_eps, ctx)
+            if pinned is None:
+                return None
+        rim = rim if pinned is None else pinned
+    return rim, whole, by_side
 
 
 def _side_seen(points, cx, cy, r, r_eps, z_below, ctx):

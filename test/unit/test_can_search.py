@@ -420,6 +420,22 @@ def test_a_can_in_front_of_a_taller_one_it_touches_is_found_with_its_own_height(
         assert abs(can.height - truth["height"]) < 0.005, (can.height, truth["height"])
 
 
+def test_a_can_behind_one_it_touches_seen_by_a_noisy_crescent_of_lid_is_found():
+    """Fresh 14009 of "cans touching": a can of r 35 mm, 95 mm high, behind a taller one it touches,
+    shows a crescent of lid (60 points at 1.2 m, the rest in the front can's shadow) and a sliver of
+    side; its rim's noisy outline fits a circle 5 mm too wide that overlaps the front can. The circle
+    refitted touching that can is the lid's: found within the tolerance, its base hidden."""
+    scene = sc.generate_scene(so.case_spec("cans touching", 14009))
+    to_table = transforms.invert(np.asarray(scene.truth["camera_from_table"]))
+    result = af.find_cans(scene.xyz)
+    why = [r.reason for r in result.rejected]
+    assert len(result.cans) == 2, why
+    for truth in scene.truth["objects"]:
+        base = transforms.apply(to_table, truth["base_center"])
+        can = nearest_can(result.cans, to_table, base)
+        assert np.hypot(*(table_xy(to_table, can)[:2] - base[:2])) < CENTRE_TOLERANCE, why
+
+
 def test_a_can_behind_two_taller_ones_is_fitted_by_its_side_and_its_lids_rim():
     """A wide can behind two taller ones shows a 0.55-rad stripe of side through the gap between them
     (no circle fits it alone) and its lid's rim over 1.3 rad, the rest of the rim in the front cans'
