@@ -1088,6 +1088,13 @@ def _support(points, cx, cy, r, base, r_eps, sigma, ctx):
     # was 35 mm high).
     held = np.count_nonzero(beside) >= s.min_band_points and _top_layer(z[beside], base, sigma) is not None
     layer = _top_layer(z[level], base, sigma) if held else None
+    if layer is not None and _one_sided(rel[beside], front, s.min_band_points) \
+            and _hidden_front(cx, cy, r, r_eps, layer + 3 * sigma, ctx):
+        # Beside the can on one side only, where an object in front stands higher: a neighbour's top
+        # touching it, whose base that object hides; a support reaches under the can from both sides, or
+        # shows its front (fresh 14679 of the cluttered table: a tin's top 55 mm up on its right, a bowl's
+        # rim 64 mm up in front; put on the tin, 104 mm high for 158).
+        layer = None
     if layer is not None or narrower:
         base_z = base if layer is None else layer
         if not narrower and _side_goes_on_down(points, dist, cx, cy, r, base_z - 3 * sigma, r_eps, ctx):
@@ -1115,16 +1122,16 @@ def _support(points, cx, cy, r, base, r_eps, sigma, ctx):
             continue
         lid = ((np.hypot(st[:, 0] - other.cx, st[:, 1] - other.cy) <= other.r + r_eps)
                & (np.hypot(srel[:, 0], srel[:, 1]) > r + r_eps) & _at_base(st[:, 2], base, sigma))
-        lid_top = _top_layer(st[lid, 2], base, sigma) if np.count_nonzero(lid) >= s.min_band_points else None
+        # Beside the can too, as a surface's layer must be (above): a bowl claimed on a circle too wide
+        # holds a can behind its rim, whose points are all in front of it (fresh 14657 of the cluttered
+        # table: put on the rim, 64 mm up, 50 mm high for 113).
+        lid_beside = lid & (srel @ front < 0.5 * r)
+        lid_top = (_top_layer(st[lid, 2], base, sigma) if np.count_nonzero(lid_beside) >= s.min_band_points
+                   and _top_layer(st[lid_beside, 2], base, sigma) is not None else None)
         if lid_top is not None:
             return "object", True, lid_top, ""
-    # Something in front, as high as the lowest point seen: the base is hidden behind it. Beyond r_eps: its
-    # own front's noise is nothing in front of it (fresh 4630 of "cup on can": a cup on a can stood on the
-    # table behind itself, and its claim took the can).
-    sahead = srel @ front
-    lateral = np.abs(srel[:, 0] * front[1] - srel[:, 1] * front[0])
-    occluder = (sahead > r + r_eps) & (sahead < r + s.occluder_reach) & (lateral < r) & (st[:, 2] >= base - 0.02)
-    if occluder.sum() >= s.min_band_points:
+    # Something in front, as high as the lowest point seen: the base is hidden behind it.
+    if _hidden_front(cx, cy, r, r_eps, base - 0.02, ctx):
         return "table", False, 0.0, ""
     # Its lowest side points on the image's edge: the view ends there, the side goes on below unseen.
     edge = ctx.image_edge
@@ -1136,6 +1143,28 @@ def _support(points, cx, cy, r, base, r_eps, sigma, ctx):
         return "table", True, 0.0, ""
     return None, False, base, (f"its lowest side point is {100 * base:.1f} cm above the table with nothing "
                                "under it (floats)")
+
+
+def _hidden_front(cx, cy, r, r_eps, height, ctx):
+    """Whether an object stands in front of the can (cx, cy, r) up to `height` or higher (m, plane
+    frame): min_band_points of the points standing on the table within occluder_reach of it toward the
+    sensor, across its width. Beyond r_eps: its own front's noise is nothing in front of it (fresh 4630
+    of "cup on can": a cup on a can stood on the table behind itself, and its claim took the can)."""
+    s = ctx.search
+    front = _toward_sensor(cx, cy, ctx)
+    st = ctx.standing
+    srel = st[:, :2] - (cx, cy)
+    ahead = srel @ front
+    lateral = np.abs(srel[:, 0] * front[1] - srel[:, 1] * front[0])
+    return np.count_nonzero((ahead > r + r_eps) & (ahead < r + s.occluder_reach) & (lateral < r)
+                            & (st[:, 2] >= height)) >= s.min_band_points
+
+
+def _one_sided(rel, front, min_points):
+    """Whether points (x, y relative to a can's axis, float (N, 2), m) lie on one side of it only, seen
+    from the sensor (`front`: unit (x, y) toward it): fewer than min_points on the left or the right."""
+    across = rel[:, 0] * front[1] - rel[:, 1] * front[0]
+    return min(np.count_nonzero(across > 0), np.count_nonzero(across < 0)) < min_points
 
 
 def _at_base(z, base, sigma):
