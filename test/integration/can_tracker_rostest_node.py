@@ -38,11 +38,8 @@ REMOVED, ADDED = 1, 2  # truth ids: removed after frame LAST_SEEN, added at fram
 LAST_SEEN = 19
 FIRST_SEEN = 6
 # frames: can_tracker's full search runs beside the frames (local_fit.BackgroundSearchFinder), so a can
-# that appears is tracked from the first frame after the search its frame started; within this many: the
-# search running when it appears, then the one from its frame, each up to about six frames on a slow, loaded
-# machine (five failed on one: a full search 68 ms median, 112 ms p90 a real frame that day). A latency
-# bound, not a speed test: speed is measured in bench/.
-NEW_CAN_FRAMES = 12
+# that appears is tracked from the first frame after the search its frame started; within this many.
+NEW_CAN_FRAMES = 5
 RATE = 30.0
 BASE_FROM_TABLE = transforms.from_translation_quaternion_xyzw((0.4, 0.0, 0.75), (0.0, 0.0, 0.0, 1.0))  # /tf_static
 MAX_MISSED = 5  # can_tracker's default ~max_missed
