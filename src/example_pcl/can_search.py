@@ -1086,7 +1086,7 @@ def _support(points, cx, cy, r, base, r_eps, sigma, ctx):
     # the can too, not only in front of it: a bowl's rim in front of a can whose base it hides, a
     # neighbour's side beside it (fresh 14438 of the cluttered table: put on the rim, 62 mm up, the can
     # was 35 mm high).
-    held = np.count_nonzero(beside) >= s.min_band_points and _top_layer(z[beside], base, sigma) is not None
+    held = _holds_layer(z[beside], base, sigma, s.min_band_points)
     layer = _top_layer(z[level], base, sigma) if held else None
     if layer is not None and _one_sided(rel[beside], front, s.min_band_points) \
             and _hidden_front(cx, cy, r, r_eps, layer + 3 * sigma, ctx):
@@ -1126,8 +1126,8 @@ def _support(points, cx, cy, r, base, r_eps, sigma, ctx):
         # holds a can behind its rim, whose points are all in front of it (fresh 14657 of the cluttered
         # table: put on the rim, 64 mm up, 50 mm high for 113).
         lid_beside = lid & (srel @ front < 0.5 * r)
-        lid_top = (_top_layer(st[lid, 2], base, sigma) if np.count_nonzero(lid_beside) >= s.min_band_points
-                   and _top_layer(st[lid_beside, 2], base, sigma) is not None else None)
+        held_beside = _holds_layer(st[lid_beside, 2], base, sigma, s.min_band_points)
+        lid_top = _top_layer(st[lid, 2], base, sigma) if held_beside else None
         if lid_top is not None:
             return "object", True, lid_top, ""
     # Something in front, as high as the lowest point seen: the base is hidden behind it.
@@ -1158,6 +1158,12 @@ def _hidden_front(cx, cy, r, r_eps, height, ctx):
     lateral = np.abs(srel[:, 0] * front[1] - srel[:, 1] * front[0])
     return np.count_nonzero((ahead > r + r_eps) & (ahead < r + s.occluder_reach) & (lateral < r)
                             & (st[:, 2] >= height)) >= s.min_band_points
+
+
+def _holds_layer(z, base, sigma, min_points):
+    """Whether heights z (m) at a base's level (m) are at least min_points and hold a support's top
+    layer (_top_layer; sigma: the depth noise there, m)."""
+    return len(z) >= min_points and _top_layer(z, base, sigma) is not None
 
 
 def _one_sided(rel, front, min_points):
