@@ -2,8 +2,8 @@
 """rostest node of can_tracker.test: can_tracker through ROS on a generated moving sequence.
 
 The sequence (scene_sequence, 36 frames): the camera drifts; can 0 stays, can 1 is removed after
-frame 19, can 2 appears at frame 6 (tracked within NEW_CAN_FRAMES) and moves 3 cm between frames
-12 and 24. Each frame is sent
+frame 19, can 2 appears at frame 6 (tracked from the first frame after its search, then in every
+frame) and moves 3 cm between frames 12 and 24. Each frame is sent
 at 30 Hz as a PointCloud2 in frame ``camera`` with the camera's true pose in the table frame on
 /tf at the cloud's stamp; base_link -> table is a static transform (/tf_static), so a static
 can is static in base_link, where both trackers publish (~target_frame).
@@ -37,9 +37,7 @@ SPEC = ss.SequenceSpec(n_frames=36)
 REMOVED, ADDED = 1, 2  # truth ids: removed after frame LAST_SEEN, added at frame FIRST_SEEN
 LAST_SEEN = 19
 FIRST_SEEN = 6
-# frames: can_tracker's full search runs beside the frames (local_fit.BackgroundSearchFinder), so a can
-# that appears is tracked from the first frame after the search its frame started; within this many.
-NEW_CAN_FRAMES = 5
+MOVE_END = SPEC.cans[ADDED].keyframes[-1][0]  # the added can moves until this frame
 RATE = 30.0
 BASE_FROM_TABLE = transforms.from_translation_quaternion_xyzw((0.4, 0.0, 0.75), (0.0, 0.0, 0.0, 1.0))  # /tf_static
 MAX_MISSED = 5  # can_tracker's default ~max_missed
@@ -137,6 +135,12 @@ class CanTrackerTests(unittest.TestCase):
         {truth id: track id}, the frame of the removed can's DELETE)."""
         cans, markers = recorder.snapshot()
         per_frame, ids = {}, {}
+        added_from = self.first_tracked(cans, t0, ADDED)
+        # can_tracker's full search runs beside the frames (local_fit.BackgroundSearchFinder): how many
+        # frames a new can waits for it depends on the machine's speed and load, so it is not asserted
+        # here (that it is tracked from the first frame after its search: test_can_tracker_node.py).
+        self.assertIsNotNone(added_from, f"can {ADDED}, added at frame {FIRST_SEEN}, was never tracked")
+        self.assertLess(added_from, MOVE_END, f"can {ADDED} was first tracked at frame {added_from}, after its move")
         for msg in cans:
             self.assertEqual(msg.header.frame_id, "base_link")
             i = frame_index(msg.header.stamp, t0)
@@ -147,7 +151,7 @@ class CanTrackerTests(unittest.TestCase):
             for truth_id, (centre, axis) in truth.items():
                 nearest = min(outputs.items(), key=lambda kv: np.linalg.norm(kv[1][:3, 3] - centre), default=None)
                 error = np.inf if nearest is None else np.linalg.norm(nearest[1][:3, 3] - centre)
-                if truth_id == ADDED and i < FIRST_SEEN + NEW_CAN_FRAMES and error >= TOLERANCE:
+                if truth_id == ADDED and i < added_from:
                     continue  # not found yet: the search is under way
                 track_id, T = nearest
                 self.assertLess(error, TOLERANCE, f"frame {i}: can {truth_id} (track {track_id}) {1e3 * error:.2f} mm "
@@ -176,6 +180,18 @@ class CanTrackerTests(unittest.TestCase):
         later = [c.id for m in cans if frame_index(m.header.stamp, t0) > deleted[0] for c in m.cans]
         self.assertNotIn(removed, later)
         return per_frame, mapping, deleted[0]
+
+    def first_tracked(self, cans, t0, truth_id):
+        """The first frame (index) at or after the can's first whose output has a can within TOLERANCE
+        of it, or None."""
+        frames = []
+        for msg in cans:
+            i = frame_index(msg.header.stamp, t0)
+            centre = truth_in_base(self.frames[i]).get(truth_id, (None,))[0]
+            if centre is not None and any(np.linalg.norm(messages.matrix_from_pose(c.pose)[:3, 3] - centre) < TOLERANCE
+                                          for c in msg.cans):
+                frames.append(i)
+        return min(frames, default=None)
 
     def test_1_stream(self):
         """At 30 Hz into can_tracker: stable ids, a new id for the new can, the removed one's marker

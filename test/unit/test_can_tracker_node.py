@@ -168,8 +168,9 @@ def test_the_search_runs_beside_the_frames(frames, manual_executor):
     assert len(executor.calls) == 1 and node.last_reason.startswith("scene changed")
     assert set(ids_by_truth(before[-1], frames[6])) == {0, 1}
     executor.run()
-    after = stream(node, frames[7:], t0=100.0)[-1]
-    assert set(ids_by_truth(after, frames[-1])) == {0, 1, 2}
+    after = stream(node, frames[7:], t0=100.0)
+    assert set(ids_by_truth(after[0], frames[7])) == {0, 1, 2}  # the first frame after the search
+    assert set(ids_by_truth(after[-1], frames[-1])) == {0, 1, 2}
     stamps = [m.header.stamp for m in node.publishers[ctn.CANS_TOPIC].messages]
     assert stamps == sorted(stamps) and len(stamps) == len(frames)
 
