@@ -2000,6 +2000,15 @@ def _rim_judged(rim, pts, z_lid, lid, sigma, r_eps, ctx):
             pinned = _hull_rim(rim, lid, sigma, r_eps, ctx)
             if pinned is None:
                 return None
+            # The hull fixes the circle to a few millimetres only; a stripe of side under it, seen wide
+            # but too short for the rounds to judge, pins it (fresh 14728 of "lying can touching can": a
+            # can behind a lying one, 20 mm of its side over it, 21 points on the rounds' circle; the
+            # hull's circle 3.9 mm off, its own side then seen through it).
+            stripe = _side_stripe(pinned, pts, z_lid, r_eps, ctx, wide=True)
+            joint = None if stripe is None else _rim_with_side(pinned, stripe, lid, sigma, r_eps, ctx,
+                                                               side_counts=True)
+            if joint is not None and g.line_ratio(stripe, joint.cx, joint.cy, joint.radius) >= s.flat_ratio:
+                pinned = by_side = joint
         rim = rim if pinned is None else pinned
     return rim, whole, by_side
 
@@ -2068,19 +2077,19 @@ def _clear_of_found(rim, lid, r_eps, ctx):
     return moved
 
 
-def _side_stripe(rim, pts, z_lid, r_eps, ctx):
+def _side_stripe(rim, pts, z_lid, r_eps, ctx, wide=False):
     """The stripe of side under a lid's rim (geometry.RimCircle) that may pin its circle
     (_rim_with_side, the side counting toward its arc): pts' points (float (N, 3), plane frame, m)
     within 2 r_eps of the rim's circle on its half facing the sensor, more than a band under the lid
-    at z_lid (m), their (x, y), float (M, 2); None when fewer than shape_bins, or over min_arc (a
-    side seen wider is the rounds' to fit and judge: a low box's faces pinned its top's rim,
+    at z_lid (m), their (x, y), float (M, 2); None when fewer than shape_bins, or over min_arc unless
+    wide (a side seen wider is the rounds' to fit and judge: a low box's faces pinned its top's rim,
     development 83 of "cluttered table")."""
     c, s = ctx.config, ctx.search
     dist = np.hypot(pts[:, 0] - rim.cx, pts[:, 1] - rim.cy)
     under = ((np.abs(dist - rim.radius) <= 2 * r_eps) & (pts[:, 2] < z_lid - s.band_height)
              & _facing(pts[:, 0], pts[:, 1], rim.cx, rim.cy, rim.radius, ctx))
     stripe = pts[under, :2]
-    if len(stripe) < c.shape_bins or g.arc_coverage(stripe, rim.cx, rim.cy) >= c.min_arc:
+    if len(stripe) < c.shape_bins or (not wide and g.arc_coverage(stripe, rim.cx, rim.cy) >= c.min_arc):
         return None
     return stripe
 

@@ -436,6 +436,26 @@ def test_a_can_behind_one_it_touches_seen_by_a_noisy_crescent_of_lid_is_found():
         assert np.hypot(*(table_xy(to_table, can)[:2] - base[:2])) < CENTRE_TOLERANCE, why
 
 
+def test_a_can_behind_a_lying_one_seen_by_a_sparse_lid_and_a_short_side_is_found():
+    """Fresh 14728 of "lying can touching can": a can of r 28 mm, 100 mm high, behind a lying can
+    whose end touches it, shows its lid (about 100 points) and 20 mm of side over the lying can, too
+    little for the rounds (21 points on their circle). Its lid's sparse outline, fitted on its hull,
+    gives a circle 3.9 mm off, through which its own side is seen; pinned by that side, the can is
+    found within the tolerance, on the table, its base hidden, and the lying can lying."""
+    scene = sc.generate_scene(so.case_spec("lying can touching can", 14728))
+    to_table = transforms.invert(np.asarray(scene.truth["camera_from_table"]))
+    result = af.find_cans(scene.xyz)
+    why = [r.reason for r in result.rejected]
+    upright = [c for c in result.cans if not c.lying]
+    assert len(upright) == 1 and len(result.cans) == 2, why
+    truth = next(t for t in scene.truth["objects"] if t["is_can"] and not t["lying"])
+    base = transforms.apply(to_table, truth["base_center"])
+    can = upright[0]
+    assert np.hypot(*(table_xy(to_table, can)[:2] - base[:2])) < CENTRE_TOLERANCE, why
+    assert can.radius == pytest.approx(truth["radius"], abs=0.0015)
+    assert can.support == "table" and not can.base_seen
+
+
 def test_a_can_behind_two_taller_ones_is_fitted_by_its_side_and_its_lids_rim():
     """A wide can behind two taller ones shows a 0.55-rad stripe of side through the gap between them
     (no circle fits it alone) and its lid's rim over 1.3 rad, the rest of the rim in the front cans'
